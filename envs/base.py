@@ -1,0 +1,71 @@
+"""The environment protocol: a small bundle of pure, jittable functions.
+
+An environment is explicit state plus two pure functions, in the spirit of
+Jumanji: ``reset(key) -> (state, observation)`` and
+``step(state, action) -> (state, observation, reward, done)``. Both must be
+jittable and vmappable, with no Python control flow on traced values.
+
+Every observation carries what any agent needs to act, whatever the action
+space:
+
+* ``vector``: a flat float vector (what the encoder sees). A partially
+  observable environment simply puts less in it.
+* ``action_features``: one row of features per discrete action, so a decoder
+  can score candidates with one shared network (pointer-style). Environments
+  without per-action structure use the identity (one-hot rows). Continuous
+  environments have an empty ``[0, F]`` array.
+* ``action_mask``: which discrete actions are legal now (all True when every
+  action is legal; empty for continuous actions).
+
+Episodes have a fixed horizon: after ``done`` the rollout ignores rewards, so
+environments need not handle stepping past the end.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+
+class Observation(NamedTuple):
+    vector: jax.Array  # [observation_size] float32
+    action_features: jax.Array  # [num_actions, action_feature_size] float32
+    action_mask: jax.Array  # [num_actions] bool
+
+
+class EnvSpec(NamedTuple):
+    """Static shapes of an environment, known before anything is traced."""
+
+    observation_size: int
+    horizon: int  # the episode always ends at or before this many steps
+    num_actions: int  # discrete actions; 0 for continuous environments
+    action_feature_size: int  # columns of Observation.action_features
+    action_dim: int = 0  # continuous action size; 0 for discrete environments
+    action_low: float = 0.0  # bounds of every continuous action component
+    action_high: float = 1.0
+
+    @property
+    def discrete(self) -> bool:
+        return self.num_actions > 0
+
+    @property
+    def action_input_size(self) -> int:
+        """Size of the vector that describes a taken action to the memory."""
+        return self.action_feature_size if self.discrete else self.action_dim
+
+
+State = Any  # each environment defines its own NamedTuple
+
+
+class Environment(NamedTuple):
+    name: str
+    spec: EnvSpec
+    reset: Callable[[jax.Array], tuple[State, Observation]]
+    step: Callable[[State, jax.Array], tuple[State, Observation, jax.Array, jax.Array]]
+
+
+def identity_action_features(num_actions: int) -> jax.Array:
+    """Action features for environments whose actions have no structure."""
+    return jnp.eye(num_actions, dtype=jnp.float32)

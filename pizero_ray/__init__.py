@@ -1,0 +1,1 @@
+"""PiZero with a Ray trainer."""

@@ -1,0 +1,302 @@
+"""The ``pizero`` command: train, resume, eval, inspect, plot.
+
+The thin impure shell: parse and validate everything first (bad input is one
+line on stderr, exit code 2, nothing written), then call into the driver.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+from pizero_ray import run_dir as rundir
+from pizero_ray.config import DECODER_INPUTS, PRESETS, ConfigError, build_config
+
+DEFAULT_ITERATIONS = 200
+
+
+class UsageError(Exception):
+    pass
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    return value
+
+
+def _env_arg(text: str) -> tuple[str, object]:
+    key, sep, raw = text.partition("=")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        value = json.loads(raw)
+    except json.JSONDecodeError:
+        value = raw
+    return key, value
+
+
+def _add_run_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--iterations", type=_positive_int, help="total iterations to reach")
+    parser.add_argument("--workers", type=_positive_int, default=2, help="worker actors (default 2)")
+    parser.add_argument("--cpus-per-worker", type=float, default=1.0)
+    parser.add_argument("--gpus-per-worker", type=float, default=0.0)
+    parser.add_argument("--address", default=None, help="Ray cluster address (default: RAY_ADDRESS, else a local instance)")
+    parser.add_argument("--checkpoint-every", type=_non_negative_int, default=25, help="iterations between checkpoints")
+    parser.add_argument("--keep-checkpoints", type=_positive_int, default=3)
+    parser.add_argument("--eval-every", type=_non_negative_int, default=0,
+                        help="evaluate the unperturbed agent every K iterations (0: never)")
+    parser.add_argument("--eval-episodes", type=_positive_int, default=256)
+    parser.add_argument("--compile-cache", default=None,
+                        help="JAX persistent compile cache dir, or 'none' (default ~/.cache/pizero-ray/jax)")
+    parser.add_argument("--no-progress", action="store_true", help="print one line per iteration instead of a bar")
+
+
+def _parser() -> argparse.ArgumentParser:
+    import envs
+
+    parser = argparse.ArgumentParser(prog="pizero", description="PiZero trained by OpenAI-ES on Ray")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    train = sub.add_parser("train", help="train a new run")
+    train.add_argument("--run-dir", required=True)
+    train.add_argument("--env", default="tsp", help=f"one of {', '.join(envs.ENV_NAMES)}")
+    train.add_argument("--env-arg", action="append", type=_env_arg, default=[], metavar="KEY=VALUE")
+    train.add_argument("--preset", default="default", help=f"one of {', '.join(PRESETS)}")
+    train.add_argument("--population", type=int, help="antithetic pairs per iteration")
+    train.add_argument("--chunk-size", type=int, help="pairs per unit of work (divides the population)")
+    train.add_argument("--trials", type=int, help="episodes per member")
+    train.add_argument("--sigma", type=float)
+    train.add_argument("--lr", dest="learning_rate", type=float)
+    train.add_argument("--weight-decay", type=float)
+    train.add_argument("--fitness-shaping", choices=("centered_ranks", "none"))
+    train.add_argument("--seed", type=int)
+    train.add_argument("--planner", help="muzero, gumbel or none")
+    train.add_argument("--simulations", dest="num_simulations", type=int)
+    train.add_argument("--abstract-actions", dest="num_abstract_actions", type=int)
+    train.add_argument("--hidden", dest="hidden_size", type=int)
+    train.add_argument("--latent", dest="latent_size", type=int)
+    train.add_argument("--memory", dest="memory_size", type=int)
+    train.add_argument("--decoder", help="pointer or flat")
+    train.add_argument("--decoder-inputs", help=f"comma-separated subset of {','.join(DECODER_INPUTS)}")
+    train.add_argument("--action-selection", help="argmax or sample")
+    train.add_argument("--action-noise", type=float)
+    train.add_argument("--root-noise", type=float)
+    _add_run_options(train)
+
+    resume = sub.add_parser("resume", help="continue a run from its newest checkpoint")
+    resume.add_argument("run_dir")
+    _add_run_options(resume)
+
+    evaluate = sub.add_parser("eval", help="evaluate a run's current parameters")
+    evaluate.add_argument("run_dir")
+    evaluate.add_argument("--episodes", type=_positive_int, default=1000)
+    evaluate.add_argument("--seed", type=_non_negative_int, default=0)
+    evaluate.add_argument("--json", action="store_true")
+
+    inspect = sub.add_parser("inspect", help="iteration and parameter hash of a run")
+    inspect.add_argument("run_dir")
+    inspect.add_argument("--json", action="store_true")
+
+    plot = sub.add_parser("plot", help="learning curves of one or more runs as a PNG")
+    plot.add_argument("run_dirs", nargs="+")
+    plot.add_argument("--out", required=True)
+    plot.add_argument("--labels", help="comma-separated, one per run dir")
+    plot.add_argument("--title", default=None)
+    return parser
+
+
+_CONFIG_FIELDS = ("population", "chunk_size", "trials", "sigma", "learning_rate", "weight_decay", "fitness_shaping",
+                  "seed", "planner", "num_simulations", "num_abstract_actions", "hidden_size", "latent_size",
+                  "memory_size", "decoder", "action_selection", "action_noise", "root_noise")
+
+
+def _train_config(args):
+    overrides = {name: getattr(args, name) for name in _CONFIG_FIELDS}
+    overrides["env"] = args.env
+    if args.env_arg:
+        overrides["env_args"] = dict(args.env_arg)
+    if args.decoder_inputs is not None:
+        overrides["decoder_inputs"] = tuple(x.strip() for x in args.decoder_inputs.split(",") if x.strip())
+    config = build_config(args.preset, **overrides)
+    import envs
+
+    envs.make(config.env, **config.env_kwargs())  # env parameters are checked before anything is written
+    return config
+
+
+def _run_options(args, iterations: int):
+    from pizero_ray.compile_cache import DEFAULT_DIR
+    from pizero_ray.driver import RunOptions
+
+    return RunOptions(
+        iterations=iterations,
+        workers=args.workers,
+        cpus_per_worker=args.cpus_per_worker,
+        gpus_per_worker=args.gpus_per_worker,
+        address=args.address,
+        checkpoint_every=args.checkpoint_every,
+        keep_checkpoints=args.keep_checkpoints,
+        eval_every=args.eval_every,
+        eval_episodes=args.eval_episodes,
+        compile_cache=args.compile_cache or str(DEFAULT_DIR),
+    )
+
+
+def _existing_run(path_text: str) -> Path:
+    path = rundir.resolve(path_text)
+    rundir.read_config(path)  # raises a one-line error naming the path
+    return path
+
+
+def _progress_callbacks(options, no_progress: bool):
+    """(on_start, on_iteration, close): a rich progress bar, or plain lines."""
+    from rich.console import Console
+
+    console = Console(stderr=True)
+    if no_progress or not console.is_terminal:
+        def on_start(info):
+            print(f"pizero: {info['connection']}, {info['workers']} workers, {info['parameters']} parameters, "
+                  f"starting at iteration {info['start_iteration']}", file=sys.stderr, flush=True)
+
+        def on_iteration(row):
+            extra = f" eval {row['eval_mean_score']:.4f}" if "eval_mean_score" in row else ""
+            print(f"iteration {row['iteration']}/{options.iterations} mean score {row['mean_score']:.4f}"
+                  f"{extra} ({row['iteration_time_s']:.2f} s)", file=sys.stderr, flush=True)
+
+        return on_start, on_iteration, lambda: None
+
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    progress = Progress(
+        TextColumn("iteration"), MofNCompleteColumn(), BarColumn(),
+        TextColumn("score {task.fields[score]}"), TextColumn("{task.fields[rate]} it/s"),
+        TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=console,
+    )
+    task = None
+
+    def on_start(info):
+        nonlocal task
+        console.print(f"pizero: {info['connection']}, {info['workers']} workers, {info['parameters']} parameters, "
+                      f"starting at iteration {info['start_iteration']}")
+        progress.start()
+        task = progress.add_task("train", total=options.iterations, completed=info["start_iteration"],
+                                 score="-", rate="-")
+
+    def on_iteration(row):
+        score = f"{row['mean_score']:.4f}" + (f" (eval {row['eval_mean_score']:.4f})" if "eval_mean_score" in row else "")
+        progress.update(task, completed=row["iteration"], score=score, rate=f"{1.0 / row['iteration_time_s']:.2f}")
+
+    return on_start, on_iteration, progress.stop
+
+
+def _run_training(run_path: Path, config, options, no_progress: bool) -> int:
+    from pizero_ray import driver
+
+    on_start, on_iteration, close = _progress_callbacks(options, no_progress)
+    try:
+        result = driver.train(run_path, config, options, on_iteration=on_iteration, on_start=on_start)
+    finally:
+        close()
+    print(json.dumps({"run_dir": str(run_path), **result}))
+    return 0
+
+
+def _cmd_train(args) -> int:
+    config = _train_config(args)
+    run_path = rundir.resolve(args.run_dir)
+    if (run_path / rundir.CONFIG_FILE).exists():
+        raise UsageError(f"run dir {run_path} already holds a run; continue it with: pizero resume {run_path}")
+    if run_path.exists() and not run_path.is_dir():
+        raise UsageError(f"run dir {run_path} exists and is not a directory")
+    options = _run_options(args, args.iterations or DEFAULT_ITERATIONS)
+    rundir.write_config(run_path, config)
+    return _run_training(run_path, config, options, args.no_progress)
+
+
+def _cmd_resume(args) -> int:
+    run_path = _existing_run(args.run_dir)
+    config = rundir.read_config(run_path)
+    if args.iterations is None:
+        raise UsageError("resume needs --iterations N, the total number of iterations to reach")
+    return _run_training(run_path, config, _run_options(args, args.iterations), args.no_progress)
+
+
+def _cmd_eval(args) -> int:
+    from pizero_ray.evaluate import evaluate_run
+
+    result = evaluate_run(_existing_run(args.run_dir), args.episodes, args.seed)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        for key, value in result.items():
+            print(f"{key:>30}: {value}")
+    return 0
+
+
+def _cmd_inspect(args) -> int:
+    from pizero_ray import checkpoints, driver
+
+    run_path = _existing_run(args.run_dir)
+    config, iteration, theta = driver.load_parameters(run_path)
+    result = {
+        "run_dir": str(run_path),
+        "env": config.env,
+        "iteration": iteration,
+        "parameters": int(theta.size),
+        "parameter_hash": driver.parameter_hash(theta),
+        "checkpoints": checkpoints.checkpoint_steps(run_path),
+        "metrics_rows": len(rundir.read_metrics(run_path)),
+    }
+    if args.json:
+        print(json.dumps(result))
+    else:
+        for key, value in result.items():
+            print(f"{key:>16}: {value}")
+    return 0
+
+
+def _cmd_plot(args) -> int:
+    from pizero_ray.plot import plot_runs
+
+    paths = [_existing_run(p) for p in args.run_dirs]
+    labels = args.labels.split(",") if args.labels else [p.name for p in paths]
+    if len(labels) != len(paths):
+        raise UsageError(f"--labels has {len(labels)} names for {len(paths)} run dirs")
+    plot_runs(paths, labels, Path(args.out), args.title)
+    print(args.out)
+    return 0
+
+
+COMMANDS = {"train": _cmd_train, "resume": _cmd_resume, "eval": _cmd_eval, "inspect": _cmd_inspect, "plot": _cmd_plot}
+
+
+def main(argv: list[str] | None = None) -> int:
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    args = _parser().parse_args(argv)
+    try:
+        return COMMANDS[args.command](args)
+    except (ConfigError, UsageError) as error:
+        print(f"pizero: error: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

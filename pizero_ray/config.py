@@ -1,0 +1,149 @@
+"""The one typed, frozen configuration, validated once at the edge.
+
+Everything that changes what training computes lives here (and is saved to
+RUN_DIR/config.json); how it is run (workers, cluster address, run dir) does
+not, so the same config gives the same parameters on any cluster.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass, field
+from typing import Any
+
+PLANNERS = ("muzero", "gumbel", "none")
+DECODERS = ("pointer", "flat")
+DECODER_INPUTS = ("state", "action", "visits", "value")
+FITNESS_SHAPINGS = ("centered_ranks", "none")
+ACTION_SELECTIONS = ("argmax", "sample")
+
+
+class ConfigError(ValueError):
+    """A bad setting; the message is one line naming the value."""
+
+
+@dataclass(frozen=True)
+class Config:
+    # environment
+    env: str = "tsp"
+    env_args: tuple[tuple[str, Any], ...] = ()
+    # agent (paper: one hidden layer of 64, abstract state 64, k = 4)
+    hidden_size: int = 64
+    latent_size: int = 64
+    memory_size: int = 64
+    num_abstract_actions: int = 4
+    planner: str = "muzero"
+    num_simulations: int = 10
+    pb_c_init: float = 1.25
+    pb_c_base: float = 19652.0
+    abstract_discount: float = 1.0
+    root_noise: float = 0.0  # Dirichlet fraction (muzero) or Gumbel scale (gumbel)
+    decoder: str = "pointer"
+    decoder_inputs: tuple[str, ...] = DECODER_INPUTS
+    action_selection: str = "argmax"
+    action_noise: float = 1.0  # Gumbel scale when action_selection == "sample"
+    # evolution strategies
+    population: int = 256  # antithetic pairs per iteration (2x members)
+    trials: int = 1  # episodes per member, averaged
+    sigma: float = 0.1
+    learning_rate: float = 0.01
+    weight_decay: float = 0.0
+    fitness_shaping: str = "centered_ranks"
+    chunk_size: int = 32  # pairs per unit of work; fixed so results never depend on workers
+    seed: int = 0
+
+    def validate(self) -> "Config":
+        from envs import ENV_NAMES  # local: keeps config importable without JAX set up
+
+        def need(condition: bool, message: str) -> None:
+            if not condition:
+                raise ConfigError(message)
+
+        need(self.env in ENV_NAMES, f"unknown env {self.env!r} (choose from {', '.join(ENV_NAMES)})")
+        for name in ("hidden_size", "latent_size", "memory_size", "num_abstract_actions",
+                     "population", "trials", "chunk_size"):
+            value = getattr(self, name)
+            need(isinstance(value, int) and value > 0, f"{name} must be a positive integer, got {value!r}")
+        need(self.planner in PLANNERS, f"unknown planner {self.planner!r} (choose from {', '.join(PLANNERS)})")
+        need(self.planner == "none" or self.num_simulations > 0,
+             f"num_simulations must be positive with planner {self.planner!r}, got {self.num_simulations}")
+        need(self.num_abstract_actions >= 2 or self.planner == "none",
+             f"num_abstract_actions must be at least 2 to plan, got {self.num_abstract_actions}")
+        need(self.decoder in DECODERS, f"unknown decoder {self.decoder!r} (choose from {', '.join(DECODERS)})")
+        need(len(self.decoder_inputs) > 0, "decoder_inputs must name at least one of " + ", ".join(DECODER_INPUTS))
+        for item in self.decoder_inputs:
+            need(item in DECODER_INPUTS, f"unknown decoder input {item!r} (choose from {', '.join(DECODER_INPUTS)})")
+        need(self.action_selection in ACTION_SELECTIONS,
+             f"unknown action selection {self.action_selection!r} (choose from {', '.join(ACTION_SELECTIONS)})")
+        need(self.fitness_shaping in FITNESS_SHAPINGS,
+             f"unknown fitness shaping {self.fitness_shaping!r} (choose from {', '.join(FITNESS_SHAPINGS)})")
+        need(self.sigma > 0, f"sigma must be positive, got {self.sigma}")
+        need(self.learning_rate > 0, f"learning_rate must be positive, got {self.learning_rate}")
+        need(self.weight_decay >= 0, f"weight_decay must be non-negative, got {self.weight_decay}")
+        need(0 <= self.root_noise <= 1 or self.planner == "gumbel", f"root_noise must be in [0, 1], got {self.root_noise}")
+        need(0 < self.abstract_discount <= 1, f"abstract_discount must be in (0, 1], got {self.abstract_discount}")
+        need(self.population % self.chunk_size == 0,
+             f"population {self.population} is not a multiple of chunk_size {self.chunk_size}")
+        need(0 <= self.seed < 2**32, f"seed must be in [0, 2^32), got {self.seed}")
+        return self
+
+    @property
+    def effective_decoder_inputs(self) -> tuple[str, ...]:
+        """Without a planner there is no search result: the decoder sees the state only."""
+        return ("state",) if self.planner == "none" else self.decoder_inputs
+
+    @property
+    def num_chunks(self) -> int:
+        return self.population // self.chunk_size
+
+    def env_kwargs(self) -> dict[str, Any]:
+        return dict(self.env_args)
+
+    def to_json(self) -> str:
+        data = dataclasses.asdict(self)
+        data["env_args"] = dict(self.env_args)
+        return json.dumps(data, indent=2, sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "Config":
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ConfigError(f"unknown config keys: {', '.join(unknown)}")
+        data = dict(data)
+        if "env_args" in data:
+            data["env_args"] = tuple(sorted(dict(data["env_args"]).items()))
+        if "decoder_inputs" in data:
+            data["decoder_inputs"] = tuple(data["decoder_inputs"])
+        return cls(**data)
+
+    @classmethod
+    def from_json(cls, text: str) -> "Config":
+        return cls.from_dict(json.loads(text))
+
+
+# Presets are overrides on top of the defaults. "default" is what learns best
+# on a 2-core machine (see docs/tsp.md); "paper" is the paper's table.
+PRESETS: dict[str, dict[str, Any]] = {
+    "default": {},
+    "paper": dict(
+        learning_rate=1e-3, sigma=0.1, population=1000, trials=5, hidden_size=64,
+        latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=10,
+        chunk_size=40,
+    ),
+    # For tests and smoke runs: compiles in seconds.
+    "tiny": dict(
+        hidden_size=8, latent_size=8, memory_size=8, num_abstract_actions=2,
+        num_simulations=2, population=4, chunk_size=2,
+    ),
+}
+
+
+def build_config(preset: str = "default", **overrides: Any) -> Config:
+    if preset not in PRESETS:
+        raise ConfigError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
+    values = {**PRESETS[preset], **{k: v for k, v in overrides.items() if v is not None}}
+    if isinstance(values.get("env_args"), dict):
+        values["env_args"] = tuple(sorted(values["env_args"].items()))
+    return Config(**values).validate()

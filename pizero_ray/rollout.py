@@ -1,0 +1,88 @@
+"""Episodes and the population rollout: the hot path, pure JAX, one jitted function.
+
+``make_pair_evaluator`` builds the function a worker runs: for a chunk of pair
+indices it regenerates each pair's noise from (iteration seed, pair index),
+plays the same episodes with theta + sigma z and theta - sigma z, and returns
+their mean scores. Nothing but the flat parameters, a seed and indices goes in;
+scores [C, 2] come out.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jax.flatten_util import ravel_pytree
+
+from envs.base import Environment
+from pizero_ray import agent, es
+from pizero_ray.config import Config
+from pizero_ray.networks import Params
+
+
+class FlatParams(NamedTuple):
+    """How the agent's parameter pytree maps to the flat vector ES works on."""
+
+    size: int
+    unravel: Callable[[jax.Array], Params]
+
+
+def flat_params(config: Config, env: Environment) -> tuple[jax.Array, FlatParams]:
+    """Initial parameters (from config.seed) as a flat float32 vector, and its layout."""
+    params = agent.init_params(jax.random.PRNGKey(config.seed), config, env.spec)
+    theta, unravel = ravel_pytree(params)
+    return theta.astype(jnp.float32), FlatParams(int(theta.size), unravel)
+
+
+def episode_reset_keys(key: jax.Array, num_episodes: int) -> jax.Array:
+    """The reset keys ``run_episodes`` uses, so evaluations can rebuild its instances."""
+    return jax.random.split(jax.random.fold_in(key, 0), num_episodes)
+
+
+def run_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:
+    """Plays ``num_episodes`` episodes to the horizon; returns their scores [E]."""
+    act_key = jax.random.fold_in(key, 1)
+    states, observations = jax.vmap(env.reset)(episode_reset_keys(key, num_episodes))
+    memory = agent.initial_memory(config, num_episodes)
+    done = jnp.zeros((num_episodes,), bool)
+    score = jnp.zeros((num_episodes,), jnp.float32)
+
+    def step(carry, t):
+        states, observations, memory, done, score = carry
+        action, memory, _ = agent.act(params, config, env.spec, memory, observations, jax.random.fold_in(act_key, t))
+        states, observations, reward, step_done = jax.vmap(env.step)(states, action)
+        score = score + jnp.where(done, 0.0, reward)
+        return (states, observations, memory, done | step_done, score), None
+
+    carry = (states, observations, memory, done, score)
+    carry, _ = jax.lax.scan(step, carry, jnp.arange(env.spec.horizon))
+    return carry[-1]
+
+
+def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
+    """jit(theta [D], iteration_seed uint32, pair_indices [C]) -> scores [C, 2] (+z, -z)."""
+
+    def member_score(theta: jax.Array, episode_key: jax.Array) -> jax.Array:
+        return jnp.mean(run_episodes(layout.unravel(theta), config, env, episode_key, config.trials))
+
+    def pair_scores(theta: jax.Array, key: jax.Array, pair_index: jax.Array) -> jax.Array:
+        noise = es.pair_noise(key, pair_index, layout.size)
+        members = jnp.stack([theta + config.sigma * noise, theta - config.sigma * noise])
+        episode_key = es.pair_episode_key(key, pair_index)  # both halves see the same episodes
+        return jax.vmap(member_score, in_axes=(0, None))(members, episode_key)
+
+    def evaluate(theta: jax.Array, iteration_seed: jax.Array, pair_indices: jax.Array) -> jax.Array:
+        key = es.iteration_key(iteration_seed)
+        return jax.vmap(pair_scores, in_axes=(None, None, 0))(theta, key, pair_indices)
+
+    return jax.jit(evaluate)
+
+
+def make_evaluator(config: Config, env: Environment, layout: FlatParams, num_episodes: int):
+    """jit(theta [D], key) -> scores [num_episodes] of the unperturbed agent."""
+
+    def evaluate(theta: jax.Array, key: jax.Array) -> jax.Array:
+        return run_episodes(layout.unravel(theta), config, env, key, num_episodes)
+
+    return jax.jit(evaluate)
