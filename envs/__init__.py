@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Callable
 
-from envs.base import EnvSpec, Environment, Observation
+from envs.base import Environment, EnvSpec, Observation
 
 # name -> factory taking the environment's parameters as keyword arguments
 _REGISTRY: dict[str, Callable[..., Environment]] = {}

@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import EnvSpec, Environment, Observation
+from envs.base import Environment, EnvSpec, Observation
 
 MAX_EXACT_CITIES = 12
 ACTION_FEATURE_SIZE = 11

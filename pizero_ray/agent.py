@@ -28,18 +28,18 @@ class StepInfo(NamedTuple):
 
 
 def init_params(key: jax.Array, config: Config, spec: EnvSpec) -> networks.Params:
-    o, m, h, l, k = (spec.observation_size, config.memory_size, config.hidden_size,
-                     config.latent_size, config.num_abstract_actions)
+    o, m, h = spec.observation_size, config.memory_size, config.hidden_size
+    latent, k = config.latent_size, config.num_abstract_actions
     keys = jax.random.split(key, 6)
     params = {
-        "encoder": networks.mlp_init(keys[0], (o + m, h, l)),
+        "encoder": networks.mlp_init(keys[0], (o + m, h, latent)),
         "memory": networks.gru_init(keys[1], o + spec.action_input_size, m),
         "decoder": decoder.init(keys[2], config, spec),
     }
     if config.planner != "none":
-        params["dynamics"] = networks.gru_init(keys[3], k, l)
-        params["reward"] = networks.dense_init(keys[4], l, 1)
-        params["prediction"] = networks.mlp_init(keys[5], (l, h, 1 + k))
+        params["dynamics"] = networks.gru_init(keys[3], k, latent)
+        params["reward"] = networks.dense_init(keys[4], latent, 1)
+        params["prediction"] = networks.mlp_init(keys[5], (latent, h, 1 + k))
     return params
 
 

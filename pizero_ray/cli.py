@@ -58,7 +58,8 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=_positive_int, default=2, help="worker actors (default 2)")
     parser.add_argument("--cpus-per-worker", type=float, default=1.0)
     parser.add_argument("--gpus-per-worker", type=float, default=0.0)
-    parser.add_argument("--address", default=None, help="Ray cluster address (default: RAY_ADDRESS, else a local instance)")
+    parser.add_argument("--address", default=None,
+                        help="Ray cluster address (default: RAY_ADDRESS, else a local instance)")
     parser.add_argument("--checkpoint-every", type=_non_negative_int, default=25, help="iterations between checkpoints")
     parser.add_argument("--keep-checkpoints", type=_positive_int, default=3)
     parser.add_argument("--eval-every", type=_non_negative_int, default=0,
@@ -138,7 +139,10 @@ def _train_config(args):
     config = build_config(args.preset, **overrides)
     import envs
 
-    envs.make(config.env, **config.env_kwargs())  # env parameters are checked before anything is written
+    try:
+        envs.make(config.env, **config.env_kwargs())  # env parameters are checked before anything is written
+    except ValueError as error:
+        raise UsageError(str(error)) from None
     return config
 
 
@@ -183,7 +187,14 @@ def _progress_callbacks(options, no_progress: bool):
 
         return on_start, on_iteration, lambda: None
 
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     progress = Progress(
         TextColumn("iteration"), MofNCompleteColumn(), BarColumn(),
@@ -201,7 +212,9 @@ def _progress_callbacks(options, no_progress: bool):
                                  score="-", rate="-")
 
     def on_iteration(row):
-        score = f"{row['mean_score']:.4f}" + (f" (eval {row['eval_mean_score']:.4f})" if "eval_mean_score" in row else "")
+        score = f"{row['mean_score']:.4f}"
+        if "eval_mean_score" in row:
+            score += f" (eval {row['eval_mean_score']:.4f})"
         progress.update(task, completed=row["iteration"], score=score, rate=f"{1.0 / row['iteration_time_s']:.2f}")
 
     return on_start, on_iteration, progress.stop
@@ -263,7 +276,7 @@ def _cmd_inspect(args) -> int:
         "parameters": int(theta.size),
         "parameter_hash": driver.parameter_hash(theta),
         "checkpoints": checkpoints.checkpoint_steps(run_path),
-        "metrics_rows": len(rundir.read_metrics(run_path)),
+        "metrics_rows": sum(1 for row in rundir.read_metrics(run_path) if row["iteration"] > 0),
     }
     if args.json:
         print(json.dumps(result))

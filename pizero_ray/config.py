@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 PLANNERS = ("muzero", "gumbel", "none")
@@ -81,7 +81,8 @@ class Config:
         need(self.sigma > 0, f"sigma must be positive, got {self.sigma}")
         need(self.learning_rate > 0, f"learning_rate must be positive, got {self.learning_rate}")
         need(self.weight_decay >= 0, f"weight_decay must be non-negative, got {self.weight_decay}")
-        need(0 <= self.root_noise <= 1 or self.planner == "gumbel", f"root_noise must be in [0, 1], got {self.root_noise}")
+        need(0 <= self.root_noise <= 1 or (self.planner == "gumbel" and self.root_noise >= 0),
+             f"root_noise must be in [0, 1] (any non-negative Gumbel scale), got {self.root_noise}")
         need(0 < self.abstract_discount <= 1, f"abstract_discount must be in (0, 1], got {self.abstract_discount}")
         need(self.population % self.chunk_size == 0,
              f"population {self.population} is not a multiple of chunk_size {self.chunk_size}")

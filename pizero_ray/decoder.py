@@ -76,7 +76,9 @@ def select_discrete(config: Config, scores: jax.Array, mask: jax.Array, key: jax
     return jnp.argmax(jnp.where(mask, scores, -jnp.inf), axis=-1).astype(jnp.int32)
 
 
-def continuous_action(params: networks.Params, config: Config, spec: EnvSpec, ctx: jax.Array, key: jax.Array) -> jax.Array:
+def continuous_action(
+    params: networks.Params, config: Config, spec: EnvSpec, ctx: jax.Array, key: jax.Array
+) -> jax.Array:
     """A point in [low, high]^d; with ``sample``, Gaussian latent noise before the squashing."""
     pre = networks.mlp(params, ctx)
     if config.action_selection == "sample":

@@ -19,7 +19,8 @@ from typing import Callable
 
 import numpy as np
 
-from pizero_ray import checkpoints, compile_cache, run_dir as rundir
+from pizero_ray import checkpoints, compile_cache
+from pizero_ray import run_dir as rundir
 from pizero_ray.config import Config
 
 EVAL_SEED = 2_000_003  # fixed held-out episodes for the learning curve
@@ -177,6 +178,10 @@ def train(
                   "workers": len(pool.actors)})
     started = time.time()
     try:
+        if evaluator is not None and not metrics:
+            # Row 0: the untrained agent, so every learning curve has its starting point.
+            eval_scores = evaluator(theta_device, jax.random.PRNGKey(EVAL_SEED))
+            log.write({"iteration": 0, "eval_mean_score": float(eval_scores.mean()), "wall_time_s": 0.0})
         while iteration < options.iterations:
             t0 = time.time()
             seed = es.iteration_seed(config.seed, iteration)

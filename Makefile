@@ -1,0 +1,30 @@
+# Two commands do all set-up: `make train` and `make test`. Each creates the
+# virtual environment it needs (in .venv) from pyproject.toml.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+RUN_DIR ?= runs/tsp-$(shell date +%Y%m%d-%H%M%S)
+ITERATIONS ?= 200
+
+.PHONY: install train test clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $(STAMP)
+
+install: $(STAMP)
+
+# The main job: a short PiZero training on TSP10 on a local Ray instance, then
+# an evaluation of the trained agent against the exact optimum.
+train: $(STAMP)
+	$(BIN)/pizero train --env tsp --run-dir $(RUN_DIR) --iterations $(ITERATIONS) --eval-every 20
+	$(BIN)/pizero eval $(RUN_DIR) --episodes 1000
+
+test: $(STAMP)
+	JAX_PLATFORMS=cpu RAY_USAGE_STATS_ENABLED=0 $(BIN)/python -m pytest -q
+
+clean:
+	rm -rf $(VENV) .pytest_cache

@@ -1,0 +1,83 @@
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+import pytest
+
+from pizero_ray import es
+from pizero_ray.config import build_config
+
+
+def test_member_noise_is_the_same_alone_or_in_a_chunk():
+    key = es.iteration_key(1234)
+    alone = es.pair_noise(key, jnp.int32(5), 300)
+    chunk = jax.jit(jax.vmap(es.pair_noise, in_axes=(None, 0, None)), static_argnums=2)(key, jnp.arange(3, 8), 300)
+    np.testing.assert_array_equal(np.asarray(alone), np.asarray(chunk[2]))
+    assert not np.allclose(chunk[0], chunk[1])
+    other_iteration = es.pair_noise(es.iteration_key(1235), jnp.int32(5), 300)
+    assert not np.allclose(alone, other_iteration)
+
+
+def test_episode_key_differs_from_noise_stream_and_between_pairs():
+    key = es.iteration_key(7)
+    a, b = es.pair_episode_key(key, 0), es.pair_episode_key(key, 1)
+    assert not np.array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_iteration_seed_is_a_pure_function():
+    assert es.iteration_seed(0, 3) == es.iteration_seed(0, 3)
+    seeds = {es.iteration_seed(s, i) for s in range(3) for i in range(50)}
+    assert len(seeds) == 150
+    assert all(0 <= s < 2**32 for s in seeds)
+
+
+def test_centered_ranks():
+    x = jnp.array([[3.0, -1.0], [10.0, 0.5]])
+    ranks = es.centered_ranks(x)
+    np.testing.assert_allclose(ranks, [[0.5 / 3 * 2 - 0.5 + 1 / 3, -0.5], [0.5, -0.5 + 1 / 3]], atol=1e-6)
+    assert float(ranks.sum()) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_chunked_gradient_equals_the_direct_sum():
+    key = es.iteration_key(99)
+    n, size, sigma = 12, 50, 0.1
+    weights = jnp.linspace(-1, 1, n)
+    direct = sum(float(weights[i]) * np.asarray(es.pair_noise(key, i, size)) for i in range(n)) / (2 * sigma * n)
+    chunked = es.pseudo_gradient(key, weights, sigma, size, chunk_size=4)
+    np.testing.assert_allclose(np.asarray(chunked), direct, rtol=1e-5, atol=1e-6)
+
+
+def _quadratic_scores(theta, key, n, sigma, target):
+    size = theta.shape[0]
+    noise = np.stack([np.asarray(es.pair_noise(key, i, size)) for i in range(n)])
+    score = lambda x: -np.sum((x - target) ** 2, axis=-1)
+    return np.stack([score(theta + sigma * noise), score(theta - sigma * noise)], axis=1)
+
+
+def test_antithetic_gradient_of_a_quadratic_points_uphill():
+    size, n, sigma = 20, 200, 0.05
+    theta = np.zeros(size, np.float32)
+    target = np.linspace(-1, 1, size).astype(np.float32)
+    key = es.iteration_key(3)
+    scores = _quadratic_scores(theta, key, n, sigma, target)
+    g = np.asarray(es.pseudo_gradient(key, es.pair_weights(jnp.asarray(scores), "none"), sigma, size, 20))
+    true_gradient = 2 * (target - theta)
+    cosine = g @ true_gradient / (np.linalg.norm(g) * np.linalg.norm(true_gradient))
+    assert cosine > 0.7
+
+
+@pytest.mark.parametrize("shaping", ["none", "centered_ranks"])
+def test_adam_ascent_steps_climb_the_quadratic(shaping):
+    size = 10
+    config = build_config("tiny", population=64, chunk_size=16, sigma=0.05, learning_rate=0.05, fitness_shaping=shaping)
+    optimizer, update = es.make_update(config, size)
+    theta = jnp.zeros(size)
+    state = optimizer.init(theta)
+    target = np.linspace(-1, 1, size).astype(np.float32)
+    start = np.sum(target**2)
+    for iteration in range(30):
+        seed = es.iteration_seed(0, iteration)
+        scores = _quadratic_scores(np.asarray(theta), es.iteration_key(seed), 64, 0.05, target)
+        theta, state, _ = update(theta, state, np.uint32(seed), jnp.asarray(scores, jnp.float32))
+    assert np.sum((np.asarray(theta) - target) ** 2) < 0.5 * start
+    assert isinstance(state[1][0], optax.ScaleByAdamState) and int(state[1][0].count) == 30

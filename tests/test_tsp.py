@@ -1,0 +1,117 @@
+import itertools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import envs
+from envs import tsp
+
+
+def _distance_matrix(coords):
+    return np.sqrt(((coords[:, None] - coords[None]) ** 2).sum(-1))
+
+
+def _brute_force(coords):
+    d = _distance_matrix(coords)
+    n = len(coords)
+    best = np.inf
+    for perm in itertools.permutations(range(1, n)):
+        tour = (0,) + perm
+        best = min(best, sum(d[tour[i], tour[(i + 1) % n]] for i in range(n)))
+    return best
+
+
+def test_reset_shapes_and_spec(tsp_env):
+    state, obs = tsp_env.reset(jax.random.PRNGKey(0))
+    spec = tsp_env.spec
+    assert spec.num_actions == 10 and spec.horizon == 10 and spec.discrete
+    assert obs.vector.shape == (spec.observation_size,)
+    assert obs.action_features.shape == (10, spec.action_feature_size)
+    assert obs.action_mask.shape == (10,) and bool(obs.action_mask.all())
+    assert np.all((np.asarray(state.coordinates) >= 0) & (np.asarray(state.coordinates) <= 1))
+
+
+def test_swap_places_the_chosen_city_and_masks_it(tsp_env):
+    state, _ = tsp_env.reset(jax.random.PRNGKey(1))
+    state, obs, reward, done = tsp_env.step(state, jnp.int32(7))
+    assert list(np.asarray(state.tour)) == [7, 1, 2, 3, 4, 5, 6, 0, 8, 9]
+    assert not bool(obs.action_mask[7]) and int(obs.action_mask.sum()) == 9
+    assert float(reward) == 0.0 and not bool(done)
+    state, obs, _, _ = tsp_env.step(state, jnp.int32(0))
+    assert list(np.asarray(state.tour)[:2]) == [7, 0]
+    # city 0 is now the previous city: its features say so
+    np.testing.assert_allclose(obs.action_features[3, 2:4], state.coordinates[0])
+
+
+def test_score_is_minus_the_closed_tour_after_n_steps(tsp_env):
+    state, _ = tsp_env.reset(jax.random.PRNGKey(2))
+    order = [3, 1, 4, 0, 5, 9, 2, 6, 8, 7]
+    rewards, dones = [], []
+    for city in order:
+        state, _, reward, done = tsp_env.step(state, jnp.int32(city))
+        rewards.append(float(reward))
+        dones.append(bool(done))
+    assert dones == [False] * 9 + [True]
+    assert list(np.asarray(state.tour)) == order
+    coords = np.asarray(state.coordinates)[order]
+    expected = np.linalg.norm(coords - np.roll(coords, -1, axis=0), axis=1).sum()
+    assert rewards[:-1] == [0.0] * 9
+    assert rewards[-1] == pytest.approx(-expected, rel=1e-5)
+
+
+def test_unmasked_variant_allows_disturbing_placed_positions():
+    env = envs.make("tsp", num_cities=5, mask_placed=False)
+    state, _ = env.reset(jax.random.PRNGKey(0))
+    state, _, _, _ = env.step(state, jnp.int32(3))
+    state, obs, _, _ = env.step(state, jnp.int32(3))  # swap city 3 from position 0 into position 1
+    assert bool(obs.action_mask.all())
+    assert list(np.asarray(state.tour)) == [1, 3, 2, 0, 4]
+
+
+def test_batched_reset_and_step_compile_once(tsp_env):
+    import chex
+
+    @jax.jit
+    @chex.assert_max_traces(n=1)
+    def batched_step(states, actions):
+        return jax.vmap(tsp_env.step)(states, actions)
+
+    states, obs = jax.jit(jax.vmap(tsp_env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
+    for t in range(3):
+        states, obs, _, _ = batched_step(states, jnp.full((8,), t, jnp.int32))
+    assert obs.vector.shape == (8, tsp_env.spec.observation_size)
+
+
+def test_held_karp_matches_brute_force():
+    coords = np.random.default_rng(0).uniform(size=(3, 7, 2))
+    exact = tsp.optimal_tour_length(coords)
+    for c, value in zip(coords, exact):
+        assert value == pytest.approx(_brute_force(c))
+
+
+def test_reference_solvers_on_a_square():
+    square = np.array([[0, 0], [1, 1], [1, 0], [0, 1]], dtype=float)
+    assert tsp.optimal_tour_length(square) == pytest.approx(4.0)
+    assert tsp.nearest_neighbour_tour_length(square) == pytest.approx(4.0)
+
+
+def test_reference_scale_of_uniform_tsp10():
+    coords = np.random.default_rng(1).uniform(size=(300, 10, 2))
+    optimal = tsp.optimal_tour_length(coords).mean()
+    nearest = tsp.nearest_neighbour_tour_length(coords).mean()
+    assert 2.75 < optimal < 2.97  # ~2.86 for uniform TSP10
+    assert 3.05 < nearest < 3.3  # ~3.17
+    assert nearest > optimal
+
+
+def test_bad_parameters_are_one_line_errors():
+    with pytest.raises(ValueError, match="num_cities"):
+        envs.make("tsp", num_cities=1)
+    with pytest.raises(ValueError, match="unknown environment 'chess'"):
+        envs.make("chess")
+    with pytest.raises(ValueError, match="bad parameters"):
+        envs.make("tsp", cities=10)
+    with pytest.raises(ValueError, match="Held-Karp"):
+        tsp.optimal_tour_length(np.zeros((13, 2)))
