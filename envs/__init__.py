@@ -1,34 +1,44 @@
-"""JAX-native environments for PiZero; see ``envs.base`` for the protocol."""
+"""JAX-native environments for PiZero; see ``envs.base`` for the protocol.
+
+Each environment module provides ``make(**params) -> Environment`` and may
+provide ``TRAINING_PRESETS``: per training preset ("default", "paper", ...),
+config overrides that suit this environment (horizon-dependent population
+sizes, say), applied on top of the global preset.
+"""
 
 from __future__ import annotations
 
-from typing import Callable
+import importlib
+from typing import Any
 
 from envs.base import Environment, EnvSpec, Observation
 
-# name -> factory taking the environment's parameters as keyword arguments
-_REGISTRY: dict[str, Callable[..., Environment]] = {}
-
-
-def _register() -> None:
-    from envs import tsp
-
-    _REGISTRY["tsp"] = tsp.make
-
-
-_register()
+# name -> (module, extra factory arguments)
+_REGISTRY: dict[str, tuple[str, dict[str, Any]]] = {
+    "tsp": ("envs.tsp", {}),
+}
 
 ENV_NAMES = tuple(sorted(_REGISTRY))
 
 
-def make(name: str, **env_args) -> Environment:
-    """Builds an environment by name; unknown names or parameters raise ValueError."""
+def _module(name: str):
     if name not in _REGISTRY:
         raise ValueError(f"unknown environment {name!r}; choose from {', '.join(ENV_NAMES)}")
+    return importlib.import_module(_REGISTRY[name][0])
+
+
+def make(name: str, **env_args) -> Environment:
+    """Builds an environment by name; unknown names or bad parameters raise a one-line ValueError."""
+    module = _module(name)
     try:
-        return _REGISTRY[name](**env_args)
+        return module.make(**_REGISTRY[name][1], **env_args)
     except TypeError as error:
         raise ValueError(f"bad parameters for environment {name!r}: {env_args} ({error})") from None
 
 
-__all__ = ["ENV_NAMES", "EnvSpec", "Environment", "Observation", "make"]
+def training_preset(name: str, preset: str) -> dict[str, Any]:
+    """This environment's config overrides for a training preset (empty if none)."""
+    return dict(getattr(_module(name), "TRAINING_PRESETS", {}).get(preset, {}))
+
+
+__all__ = ["ENV_NAMES", "EnvSpec", "Environment", "Observation", "make", "training_preset"]

@@ -19,6 +19,13 @@ space:
 
 Episodes have a fixed horizon: after ``done`` the rollout ignores rewards, so
 environments need not handle stepping past the end.
+
+Two optional hooks live beside the rules, outside the jitted path:
+
+* ``render(state) -> uint8 [H, W, 3]``: draws one unbatched state (NumPy/PIL).
+* ``references(initial_states, scores) -> dict``: reference solvers or
+  policies evaluated on the same initial states as the agent (batched, leading
+  dimension = episodes), reported by ``pizero eval`` next to the agent's score.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 class Observation(NamedTuple):
@@ -64,6 +72,8 @@ class Environment(NamedTuple):
     spec: EnvSpec
     reset: Callable[[jax.Array], tuple[State, Observation]]
     step: Callable[[State, jax.Array], tuple[State, Observation, jax.Array, jax.Array]]
+    render: Callable[[State], np.ndarray] | None = None
+    references: Callable[[State, np.ndarray], dict[str, float]] | None = None
 
 
 def identity_action_features(num_actions: int) -> jax.Array:

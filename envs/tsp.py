@@ -92,8 +92,52 @@ def make(num_cities: int = 10, mask_placed: bool = True) -> Environment:
         num_actions=n,
         action_feature_size=ACTION_FEATURE_SIZE,
     )
-    return Environment("tsp", spec, reset, step)
+    return Environment("tsp", spec, reset, step, render=render, references=references)
 
+
+def references(initial_states: TSPState, scores: np.ndarray) -> dict[str, float]:
+    """The agent's tours next to nearest neighbour and, for n <= 12, the exact optimum."""
+    coordinates = np.asarray(initial_states.coordinates, dtype=np.float64)
+    tours = -np.asarray(scores, dtype=np.float64)
+    out = {
+        "mean_tour_length": float(tours.mean()),
+        "nearest_neighbour_tour_length": float(nearest_neighbour_tour_length(coordinates).mean()),
+    }
+    if coordinates.shape[1] <= MAX_EXACT_CITIES:
+        optimal = optimal_tour_length(coordinates)
+        out["optimal_tour_length"] = float(optimal.mean())
+        out["ratio_to_optimal"] = float(tours.mean() / optimal.mean())
+        out["mean_optimality_gap"] = float((tours / optimal - 1.0).mean())
+    return out
+
+
+def render(state: TSPState, size: int = 320) -> np.ndarray:
+    """Cities as dots, the tour placed so far as a path (closed once complete)."""
+    from PIL import Image, ImageDraw
+
+    margin = 16
+    coordinates = np.asarray(state.coordinates)
+    tour = np.asarray(state.tour)
+    t = int(state.t)
+    n = len(tour)
+    to_pixels = lambda xy: (margin + xy[0] * (size - 2 * margin), size - margin - xy[1] * (size - 2 * margin))
+    image = Image.new("RGB", (size, size), "white")
+    draw = ImageDraw.Draw(image)
+    path = [to_pixels(coordinates[city]) for city in tour[:t]]
+    if t == n:
+        path.append(path[0])
+    if len(path) > 1:
+        draw.line(path, fill=(40, 90, 200), width=3)
+    placed = set(tour[:t].tolist())
+    for city, xy in enumerate(coordinates):
+        x, y = to_pixels(xy)
+        colour = (40, 90, 200) if city in placed else (150, 150, 150)
+        draw.ellipse((x - 5, y - 5, x + 5, y + 5), fill=colour)
+    if 0 < t < n:
+        x, y = to_pixels(coordinates[tour[t - 1]])
+        draw.ellipse((x - 8, y - 8, x + 8, y + 8), outline=(220, 60, 40), width=3)
+    draw.text((6, 2), f"TSP{n}  step {t}/{n}", fill="black")
+    return np.asarray(image)
 
 # ---------------------------------------------------------------- reference solvers
 

@@ -15,7 +15,7 @@ from pathlib import Path
 from pizero_ray import run_dir as rundir
 from pizero_ray.config import DECODER_INPUTS, PRESETS, ConfigError, build_config
 
-DEFAULT_ITERATIONS = 200
+DEFAULT_ITERATIONS = 400
 
 
 class UsageError(Exception):
@@ -111,6 +111,15 @@ def _parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--episodes", type=_positive_int, default=1000)
     evaluate.add_argument("--seed", type=_non_negative_int, default=0)
     evaluate.add_argument("--json", action="store_true")
+    evaluate.add_argument("--env-arg", action="append", type=_env_arg, default=[], metavar="KEY=VALUE",
+                          help="override an environment parameter (e.g. levels=PATH)")
+
+    render = sub.add_parser("render", help="draw what a run's agent does (PNG frame or GIF)")
+    render.add_argument("run_dir")
+    render.add_argument("--episodes", type=_positive_int, default=1)
+    render.add_argument("--seed", type=_non_negative_int, default=0)
+    render.add_argument("--out", required=True, help="FILE.gif (whole episodes) or FILE.png (final frame)")
+    render.add_argument("--env-arg", action="append", type=_env_arg, default=[], metavar="KEY=VALUE")
 
     inspect = sub.add_parser("inspect", help="iteration and parameter hash of a run")
     inspect.add_argument("run_dir")
@@ -255,7 +264,7 @@ def _cmd_resume(args) -> int:
 def _cmd_eval(args) -> int:
     from pizero_ray.evaluate import evaluate_run
 
-    result = evaluate_run(_existing_run(args.run_dir), args.episodes, args.seed)
+    result = evaluate_run(_existing_run(args.run_dir), args.episodes, args.seed, dict(args.env_arg))
     if args.json:
         print(json.dumps(result))
     else:
@@ -268,7 +277,7 @@ def _cmd_inspect(args) -> int:
     from pizero_ray import checkpoints, driver
 
     run_path = _existing_run(args.run_dir)
-    config, iteration, theta = driver.load_parameters(run_path)
+    config, iteration, theta, _, _ = driver.load_run(run_path)
     result = {
         "run_dir": str(run_path),
         "env": config.env,
@@ -286,6 +295,17 @@ def _cmd_inspect(args) -> int:
     return 0
 
 
+def _cmd_render(args) -> int:
+    from pizero_ray import render
+
+    out = Path(args.out)
+    if out.suffix.lower() not in (".png", ".gif"):
+        raise UsageError(f"--out must end in .png or .gif, got {args.out}")
+    frames = render.episode_frames(_existing_run(args.run_dir), args.episodes, args.seed, dict(args.env_arg))
+    print(render.write(frames, out))
+    return 0
+
+
 def _cmd_plot(args) -> int:
     from pizero_ray.plot import plot_runs
 
@@ -298,7 +318,8 @@ def _cmd_plot(args) -> int:
     return 0
 
 
-COMMANDS = {"train": _cmd_train, "resume": _cmd_resume, "eval": _cmd_eval, "inspect": _cmd_inspect, "plot": _cmd_plot}
+COMMANDS = {"train": _cmd_train, "resume": _cmd_resume, "eval": _cmd_eval, "inspect": _cmd_inspect, "plot": _cmd_plot,
+            "render": _cmd_render}
 
 
 def main(argv: list[str] | None = None) -> int:

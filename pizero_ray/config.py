@@ -142,9 +142,15 @@ PRESETS: dict[str, dict[str, Any]] = {
 
 
 def build_config(preset: str = "default", **overrides: Any) -> Config:
+    """Global preset, then the environment's own overrides for it, then explicit overrides."""
     if preset not in PRESETS:
         raise ConfigError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
-    values = {**PRESETS[preset], **{k: v for k, v in overrides.items() if v is not None}}
+    explicit = {k: v for k, v in overrides.items() if v is not None}
+    env_name = explicit.get("env", Config.env)
+    import envs
+
+    env_preset = envs.training_preset(env_name, preset) if env_name in envs.ENV_NAMES else {}
+    values = {**PRESETS[preset], **env_preset, **explicit}
     if isinstance(values.get("env_args"), dict):
         values["env_args"] = tuple(sorted(values["env_args"].items()))
     return Config(**values).validate()

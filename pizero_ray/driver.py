@@ -15,13 +15,13 @@ import time
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
 from pizero_ray import checkpoints, compile_cache
 from pizero_ray import run_dir as rundir
-from pizero_ray.config import Config
+from pizero_ray.config import Config, ConfigError
 
 EVAL_SEED = 2_000_003  # fixed held-out episodes for the learning curve
 
@@ -117,17 +117,37 @@ def _initial_state(config: Config, env):
     return np.asarray(theta), optimizer.init(jnp.asarray(theta)), layout, update
 
 
-def load_parameters(run_path: Path) -> tuple[Config, int, np.ndarray]:
-    """(config, iteration, flat parameters) of a run dir: its newest checkpoint, or the initial ones."""
+class LoadedRun(NamedTuple):
+    config: Config
+    iteration: int
+    theta: np.ndarray  # flat parameters
+    env: object  # envs.Environment
+    layout: object  # rollout.FlatParams
+
+
+def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
+    """A run dir's newest checkpoint (or its initial parameters), with its environment.
+
+    ``env_args`` override the run's environment parameters (evaluate on other
+    levels, say); they may not change the agent's shape.
+    """
     import envs
 
     config = rundir.read_config(run_path)
-    env = envs.make(config.env, **config.env_kwargs())
-    theta, opt_state, _, _ = _initial_state(config, env)
+    trained_env = envs.make(config.env, **config.env_kwargs())
+    theta, opt_state, layout, _ = _initial_state(config, trained_env)
+    env = trained_env
+    if env_args:
+        try:
+            env = envs.make(config.env, **{**config.env_kwargs(), **env_args})
+        except ValueError as error:
+            raise ConfigError(str(error)) from None
+        if env.spec != trained_env.spec:
+            raise ConfigError(f"env args {env_args} change the environment's shapes: the trained agent cannot act")
     restored = checkpoints.restore_latest(run_path, theta, opt_state)
     if restored is None:
-        return config, 0, theta
-    return config, restored.iteration, restored.theta
+        return LoadedRun(config, 0, theta, env, layout)
+    return LoadedRun(config, restored.iteration, restored.theta, env, layout)
 
 
 def train(

@@ -40,10 +40,20 @@ def episode_reset_keys(key: jax.Array, num_episodes: int) -> jax.Array:
     return jax.random.split(jax.random.fold_in(key, 0), num_episodes)
 
 
-def run_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:
-    """Plays ``num_episodes`` episodes to the horizon; returns their scores [E]."""
+class Trajectory(NamedTuple):
+    """What ``record_episodes`` returns: everything a renderer needs, time-major."""
+
+    initial_state: object  # env state pytree, leading dim E
+    states: object  # env state after each step, leading dims [T, E]
+    actions: jax.Array  # [T, E] (or [T, E, d] for continuous actions)
+    rewards: jax.Array  # [T, E], zero after the episode ended
+    dones: jax.Array  # [T, E]: the episode had ended by this step
+    scores: jax.Array  # [E]
+
+
+def _play(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int, record: bool):
     act_key = jax.random.fold_in(key, 1)
-    states, observations = jax.vmap(env.reset)(episode_reset_keys(key, num_episodes))
+    initial_states, observations = jax.vmap(env.reset)(episode_reset_keys(key, num_episodes))
     memory = agent.initial_memory(config, num_episodes)
     done = jnp.zeros((num_episodes,), bool)
     score = jnp.zeros((num_episodes,), jnp.float32)
@@ -52,12 +62,25 @@ def run_episodes(params: Params, config: Config, env: Environment, key: jax.Arra
         states, observations, memory, done, score = carry
         action, memory, _ = agent.act(params, config, env.spec, memory, observations, jax.random.fold_in(act_key, t))
         states, observations, reward, step_done = jax.vmap(env.step)(states, action)
-        score = score + jnp.where(done, 0.0, reward)
-        return (states, observations, memory, done | step_done, score), None
+        reward = jnp.where(done, 0.0, reward)
+        done = done | step_done
+        out = (states, action, reward, done) if record else None
+        return (states, observations, memory, done, score + reward), out
 
-    carry = (states, observations, memory, done, score)
-    carry, _ = jax.lax.scan(step, carry, jnp.arange(env.spec.horizon))
-    return carry[-1]
+    carry = (initial_states, observations, memory, done, score)
+    carry, recorded = jax.lax.scan(step, carry, jnp.arange(env.spec.horizon))
+    return initial_states, carry[-1], recorded
+
+
+def run_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:
+    """Plays ``num_episodes`` episodes to the horizon; returns their scores [E]."""
+    return _play(params, config, env, key, num_episodes, record=False)[1]
+
+
+def record_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> Trajectory:
+    """Like ``run_episodes`` (same episodes for the same key), keeping every step."""
+    initial_states, scores, (states, actions, rewards, dones) = _play(params, config, env, key, num_episodes, True)
+    return Trajectory(initial_states, states, actions, rewards, dones, scores)
 
 
 def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):

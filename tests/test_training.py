@@ -46,6 +46,16 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(ray_session, tmp_path,
     assert evaluation["mean_tour_length"] == pytest.approx(-evaluation["mean_score"])
     assert evaluation["ratio_to_optimal"] >= 1.0
 
+    gif = tmp_path / "episode.gif"
+    assert main(["render", str(path), "--out", str(gif)]) == 0
+    from PIL import Image
+
+    with Image.open(gif) as image:
+        assert image.n_frames == 11  # the initial state and one frame per step of TSP10
+
+    assert main(["eval", str(path), "--episodes", "4", "--env-arg", "num_cities=12"]) == 2
+    assert "change the environment's shapes" in capsys.readouterr().err
+
     out = tmp_path / "curve.png"
     assert main(["plot", str(path), "--out", str(out)]) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
