@@ -9,10 +9,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
 from pathlib import Path
 
 from pizero_ray import run_dir as rundir
+from pizero_ray.checkpoints import CheckpointError
 from pizero_ray.config import DECODER_INPUTS, PRESETS, ConfigError, build_config
 
 DEFAULT_ITERATIONS = 400
@@ -56,6 +58,13 @@ def _env_arg(text: str) -> tuple[str, object]:
 def _add_run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--iterations", type=_positive_int, help="total iterations to reach")
     parser.add_argument("--workers", type=_positive_int, default=2, help="worker actors (default 2)")
+    parser.add_argument("--max-workers", type=_positive_int, default=None,
+                        help="start more actors, up to this many, as the cluster grows (default: --workers)")
+    parser.add_argument("--min-fraction", type=float, default=1.0,
+                        help="finish an iteration once this fraction of chunks is in, dropping stragglers "
+                             "(faster, no longer deterministic; default 1: complete)")
+    parser.add_argument("--chunk-timeout", type=float, default=300.0,
+                        help="seconds before a worker holding a chunk counts as hung (default 300)")
     parser.add_argument("--cpus-per-worker", type=float, default=1.0)
     parser.add_argument("--gpus-per-worker", type=float, default=0.0)
     parser.add_argument("--address", default=None,
@@ -159,9 +168,18 @@ def _run_options(args, iterations: int):
     from pizero_ray.compile_cache import DEFAULT_DIR
     from pizero_ray.driver import RunOptions
 
+    if not 0 < args.min_fraction <= 1:
+        raise UsageError(f"--min-fraction must be in (0, 1], got {args.min_fraction}")
+    if args.chunk_timeout <= 0:
+        raise UsageError(f"--chunk-timeout must be positive, got {args.chunk_timeout}")
+    if args.max_workers is not None and args.max_workers < args.workers:
+        raise UsageError(f"--max-workers {args.max_workers} is below --workers {args.workers}")
     return RunOptions(
         iterations=iterations,
         workers=args.workers,
+        max_workers=args.max_workers,
+        min_fraction=args.min_fraction,
+        chunk_timeout_s=args.chunk_timeout,
         cpus_per_worker=args.cpus_per_worker,
         gpus_per_worker=args.gpus_per_worker,
         address=args.address,
@@ -238,6 +256,10 @@ def _run_training(run_path: Path, config, options, no_progress: bool) -> int:
     finally:
         close()
     print(json.dumps({"run_dir": str(run_path), **result}))
+    if result["stopped_by"]:
+        print(f"pizero: stopped by {result['stopped_by']} after iteration {result['iteration']}, checkpoint saved; "
+              f"continue with: pizero resume {run_path} --iterations {options.iterations}", file=sys.stderr)
+        return 128 + int(getattr(signal, result["stopped_by"]))
     return 0
 
 
@@ -249,7 +271,7 @@ def _cmd_train(args) -> int:
     if run_path.exists() and not run_path.is_dir():
         raise UsageError(f"run dir {run_path} exists and is not a directory")
     options = _run_options(args, args.iterations or DEFAULT_ITERATIONS)
-    rundir.write_config(run_path, config)
+    rundir.write_config(run_path, config)  # the last step before training: all input was valid
     return _run_training(run_path, config, options, args.no_progress)
 
 
@@ -327,7 +349,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         return COMMANDS[args.command](args)
-    except (ConfigError, UsageError) as error:
+    except (ConfigError, UsageError, CheckpointError) as error:
         print(f"pizero: error: {error}", file=sys.stderr)
         return 2
 

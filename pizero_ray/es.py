@@ -42,26 +42,38 @@ def pair_episode_key(key: jax.Array, pair_index: jax.Array) -> jax.Array:
     return jax.random.fold_in(jax.random.fold_in(key, pair_index), _EPISODE_STREAM)
 
 
-def centered_ranks(x: jax.Array) -> jax.Array:
-    """Ranks scaled to [-0.5, 0.5] (Salimans et al. 2017); ties broken by position."""
+def centered_ranks(x: jax.Array, valid: jax.Array | None = None) -> jax.Array:
+    """Ranks scaled to [-0.5, 0.5] (Salimans et al. 2017); ties broken by position.
+
+    Entries where ``valid`` is False take no rank and come back as 0.
+    """
     flat = x.reshape(-1)
-    ranks = jnp.empty_like(flat, dtype=jnp.float32).at[jnp.argsort(flat, stable=True)].set(
-        jnp.arange(flat.size, dtype=jnp.float32)
-    )
-    return (ranks / max(flat.size - 1, 1) - 0.5).reshape(x.shape)
+    valid_flat = jnp.ones(flat.shape, bool) if valid is None else jnp.broadcast_to(valid, x.shape).reshape(-1)
+    order = jnp.argsort(jnp.where(valid_flat, flat, jnp.inf), stable=True)  # invalid entries rank last
+    ranks = jnp.empty_like(flat, dtype=jnp.float32).at[order].set(jnp.arange(flat.size, dtype=jnp.float32))
+    count = jnp.sum(valid_flat)
+    shaped = ranks / jnp.maximum(count - 1, 1).astype(jnp.float32) - 0.5
+    return jnp.where(valid_flat, shaped, 0.0).reshape(x.shape)
 
 
-def pair_weights(scores: jax.Array, fitness_shaping: str) -> jax.Array:
-    """Per-pair weight w_i from scores [n, 2] (columns: +z, -z)."""
-    shaped = centered_ranks(scores) if fitness_shaping == "centered_ranks" else scores
-    return shaped[:, 0] - shaped[:, 1]
+def pair_weights(scores: jax.Array, fitness_shaping: str, valid: jax.Array | None = None) -> jax.Array:
+    """Per-pair weight w_i from scores [n, 2] (columns: +z, -z); 0 for pairs not ``valid``."""
+    pair_valid = None if valid is None else valid[:, None]
+    shaped = centered_ranks(scores, pair_valid) if fitness_shaping == "centered_ranks" else scores
+    weights = shaped[:, 0] - shaped[:, 1]
+    return weights if valid is None else jnp.where(valid, weights, 0.0)
 
 
-def pseudo_gradient(key: jax.Array, weights: jax.Array, sigma: float, size: int, chunk_size: int) -> jax.Array:
-    """sum_i w_i z_i / (2 sigma n), regenerating the noise one chunk at a time."""
-    n = weights.shape[0]
-    chunks = weights.reshape(n // chunk_size, chunk_size)
-    starts = jnp.arange(0, n, chunk_size)
+def pseudo_gradient(
+    key: jax.Array, weights: jax.Array, sigma: float, size: int, chunk_size: int, num_pairs: jax.Array | None = None
+) -> jax.Array:
+    """sum_i w_i z_i / (2 sigma n), regenerating the noise one chunk at a time.
+
+    ``num_pairs`` is n when some weights are zero because their pairs were dropped.
+    """
+    total_pairs = weights.shape[0]
+    chunks = weights.reshape(total_pairs // chunk_size, chunk_size)
+    starts = jnp.arange(0, total_pairs, chunk_size)
 
     def add_chunk(total, chunk):
         start, chunk_weights = chunk
@@ -69,7 +81,7 @@ def pseudo_gradient(key: jax.Array, weights: jax.Array, sigma: float, size: int,
         return total + chunk_weights @ noise, None
 
     total, _ = jax.lax.scan(add_chunk, jnp.zeros((size,), jnp.float32), (starts, chunks))
-    return total / (2.0 * sigma * n)
+    return total / (2.0 * sigma * (total_pairs if num_pairs is None else num_pairs))
 
 
 def make_optimizer(config: Config) -> optax.GradientTransformation:
@@ -85,12 +97,17 @@ class UpdateStats(NamedTuple):
 
 
 def make_update(config: Config, size: int):
-    """jit(theta, opt_state, iteration_seed, scores [n, 2]) -> (theta, opt_state, stats)."""
+    """jit(theta, opt_state, iteration_seed, scores [n, 2], valid [n]) -> (theta, opt_state, stats).
+
+    ``valid`` marks the pairs whose scores came in (all of them unless a run
+    lets iterations finish early with ``min_fraction``).
+    """
     optimizer = make_optimizer(config)
 
-    def update(theta, opt_state, seed, scores):
-        weights = pair_weights(scores, config.fitness_shaping)
-        g = pseudo_gradient(iteration_key(seed), weights, config.sigma, size, config.chunk_size)
+    def update(theta, opt_state, seed, scores, valid):
+        weights = pair_weights(scores, config.fitness_shaping, valid)
+        num_pairs = jnp.maximum(jnp.sum(valid), 1).astype(jnp.float32)
+        g = pseudo_gradient(iteration_key(seed), weights, config.sigma, size, config.chunk_size, num_pairs)
         updates, opt_state = optimizer.update(-g, opt_state, theta)
         new_theta = optax.apply_updates(theta, updates)
         stats = UpdateStats(jnp.linalg.norm(g), jnp.linalg.norm(updates), jnp.linalg.norm(new_theta))

@@ -26,6 +26,7 @@ def init(address: str | None = None, num_cpus: int | None = None) -> str:
         ray.init(address=address, log_to_driver=True, logging_level="WARNING")
         return f"Ray cluster at {address}"
     ray.init(
+        address="local",  # a new instance even if another Ray runs on this machine: join one only when asked
         num_cpus=num_cpus or os.cpu_count(),
         object_store_memory=LOCAL_OBJECT_STORE_BYTES,
         include_dashboard=False,

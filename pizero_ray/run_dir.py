@@ -55,6 +55,14 @@ def read_metrics(run_dir: Path) -> list[dict]:
     return rows
 
 
+def rewrite_metrics(run_dir: Path, rows: list[dict]) -> None:
+    """Replaces metrics.jsonl with exactly ``rows`` (atomically): resume keeps the rows up to its checkpoint."""
+    path = run_dir / METRICS_FILE
+    tmp = path.with_name(METRICS_FILE + ".tmp")
+    tmp.write_text("".join(json.dumps(row, sort_keys=True) + "\n" for row in rows))
+    os.replace(tmp, path)
+
+
 class MetricsLog:
     """Appends one JSON object per iteration, flushed and fsynced as it goes."""
 

@@ -1,4 +1,10 @@
-"""Ray worker actors: each holds the compiled population rollout and evaluates chunks."""
+"""Ray worker actors: each holds the compiled population rollout and evaluates chunks.
+
+A worker compiles its rollout ahead of time in ``__init__`` (a hit in JAX's
+persistent compilation cache when another worker compiled the same program
+before), so "ready" means "can return a chunk in one rollout's time", and the
+driver's per-chunk timeout need not allow for compiles.
+"""
 
 from __future__ import annotations
 
@@ -13,6 +19,7 @@ class RolloutWorker:
     """Evaluates chunks of antithetic pairs; returns their scores [C, 2] as float32."""
 
     def __init__(self, config_json: str, compile_cache_dir: str | None):
+        started = time.time()
         from pizero_ray import compile_cache
 
         compile_cache.enable(compile_cache_dir)
@@ -23,37 +30,43 @@ class RolloutWorker:
         from pizero_ray import rollout
         from pizero_ray.config import Config
 
-        self._started = time.time()
-        self._jnp = jnp
         self.config = Config.from_json(config_json)
         env = envs.make(self.config.env, **self.config.env_kwargs())
-        _, layout = rollout.flat_params(self.config, env)
-        self._evaluate = rollout.make_pair_evaluator(self.config, env, layout)
-        self._device = str(jax.devices()[0])
+        theta, layout = rollout.flat_params(self.config, env)
+        pairs = jnp.arange(self.config.chunk_size, dtype=jnp.int32)
+        evaluate = rollout.make_pair_evaluator(self.config, env, layout)
+        self._evaluate = evaluate.lower(theta, np.uint32(0), pairs).compile()
+        self._jnp = jnp
+        self._info = {
+            "pid": os.getpid(),
+            "node_id": ray.get_runtime_context().get_node_id(),
+            "device": str(jax.devices()[0]),
+            "startup_s": time.time() - started,
+        }
         self._chunks_done = 0
+
+    def ready(self) -> dict:
+        return self._info
 
     def evaluate_chunk(self, theta: np.ndarray, iteration_seed: int, first_pair: int) -> np.ndarray:
         jnp = self._jnp
         pairs = jnp.arange(first_pair, first_pair + self.config.chunk_size, dtype=jnp.int32)
-        scores = self._evaluate(jnp.asarray(theta), np.uint32(iteration_seed), pairs)
+        scores = self._evaluate(jnp.asarray(theta, jnp.float32), np.uint32(iteration_seed), pairs)
         self._chunks_done += 1
         return np.asarray(scores, dtype=np.float32)
 
     def info(self) -> dict:
-        return {
-            "pid": os.getpid(),
-            "node_id": ray.get_runtime_context().get_node_id(),
-            "device": self._device,
-            "chunks_done": self._chunks_done,
-            "uptime_s": time.time() - self._started,
-        }
+        return {**self._info, "chunks_done": self._chunks_done}
 
 
-def start_worker(config_json: str, num_cpus: float, num_gpus: float, compile_cache_dir: str | None):
+def start_worker(
+    config_json: str, num_cpus: float, num_gpus: float, compile_cache_dir: str | None, resources: dict | None = None
+):
     env_vars = {"RAY_USAGE_STATS_ENABLED": "0"}
     if num_gpus == 0:
         env_vars["JAX_PLATFORMS"] = "cpu"  # a CPU worker on a GPU node must not grab the GPU
     actor = ray.remote(RolloutWorker).options(
-        num_cpus=num_cpus, num_gpus=num_gpus, runtime_env={"env_vars": env_vars}, max_concurrency=1
+        num_cpus=num_cpus, num_gpus=num_gpus, resources=resources or {}, runtime_env={"env_vars": env_vars},
+        max_concurrency=1,
     )
     return actor.remote(config_json, compile_cache_dir)

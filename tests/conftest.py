@@ -7,6 +7,8 @@ import pytest  # noqa: E402
 
 from pizero_ray.config import build_config  # noqa: E402
 
+OBJECT_STORE_BYTES = 80 * 1024 * 1024
+
 
 @pytest.fixture(scope="session")
 def tiny_config():
@@ -27,10 +29,26 @@ def compile_cache_dir(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def ray_session():
-    """One local Ray instance per test session."""
+def ray_cluster():
+    """One Ray instance per test session, as a multi-node cluster on this machine.
+
+    The head holds no CPUs (only the driver runs there); one worker node holds
+    3 CPUs for ordinary tests; tests that need nodes to come and go add their
+    own nodes with a custom resource so that only their workers land there.
+    """
+    import ray
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0, "object_store_memory": OBJECT_STORE_BYTES})
+    cluster.add_node(num_cpus=3, object_store_memory=OBJECT_STORE_BYTES)
+    ray.init(address=cluster.address, logging_level="ERROR")
+    yield cluster
+    ray.shutdown()
+    cluster.shutdown()
+
+
+@pytest.fixture(scope="session")
+def ray_session(ray_cluster):
     import ray
 
-    ray.init(num_cpus=4, object_store_memory=128 * 1024 * 1024, include_dashboard=False, logging_level="ERROR")
-    yield ray
-    ray.shutdown()
+    return ray

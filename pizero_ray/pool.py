@@ -1,0 +1,233 @@
+"""An elastic pool of worker actors and the queue of chunks of one iteration.
+
+Workers come and go: a chunk whose worker dies (actor death, node loss,
+preemption) or hangs past its deadline goes back on the queue and runs
+elsewhere; the pool keeps asking Ray for ``max_workers`` actors, so replacements
+and actors on newly joined nodes start as soon as the cluster has room (which is
+also the demand an autoscaler sees). Only workers that finished compiling get
+chunks. Every wait has a timeout.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from pizero_ray.config import Config
+
+POLL_S = 0.5  # how often the driver looks up from ray.wait (signals, deadlines)
+MAX_CHUNK_FAILURES = 5  # a chunk that kills this many workers is a bug, not bad luck
+MAX_STARTUP_FAILURES = 3  # consecutive actors dying in __init__ means they never will start
+
+
+class TrainingError(RuntimeError):
+    pass
+
+
+class Interrupted(Exception):
+    """A stop was requested (SIGTERM/SIGINT) while an iteration was under way."""
+
+
+@dataclass(frozen=True)
+class PoolOptions:
+    max_workers: int
+    cpus_per_worker: float = 1.0
+    gpus_per_worker: float = 0.0
+    compile_cache: str | None = None
+    chunk_timeout_s: float = 300.0  # one chunk on a ready worker; a worker past it is hung
+    worker_start_timeout_s: float = 900.0  # no ready worker for this long: give up
+    in_flight_per_worker: int = 2  # keeps a worker busy while its last result travels
+    min_fraction: float = 1.0  # < 1: finish once this fraction of chunks is in (not deterministic)
+    worker_resources: tuple[tuple[str, float], ...] = ()  # custom Ray resources each worker needs
+    # Chaos: (iteration, chunk) pairs; right after that chunk is handed out, its worker's process is SIGKILLed.
+    kill_schedule: frozenset[tuple[int, int]] = frozenset()
+
+
+@dataclass
+class _Worker:
+    actor: Any
+    created: float
+    ready_ref: Any = None
+    ready: bool = False
+    in_flight: int = 0
+    info: dict = field(default_factory=dict)
+    first_result_s: float | None = None  # actor creation to its first chunk result
+
+
+@dataclass
+class IterationResult:
+    scores: np.ndarray  # [population, 2]; rows of dropped chunks are zero
+    valid: np.ndarray  # [population] bool: pairs whose scores are in
+    requeued_chunks: int
+    new_worker_first_result_s: list[float]
+    worker_nodes: list[str]  # Ray node ids of the workers that returned chunks
+
+
+class WorkerPool:
+    def __init__(self, config: Config, options: PoolOptions):
+        self._config = config
+        self._options = options
+        self._config_json = config.to_json()
+        self._workers: list[_Worker] = []
+        self._stale: dict = {}  # refs of chunks dropped by min_fraction -> their worker
+        self._startup_failures = 0
+        self._last_ready_time = time.time()
+        self.kills = 0
+        self._kills_done: set[tuple[int, int]] = set()
+        self.top_up()
+
+    # ------------------------------------------------------------------ workers
+
+    @property
+    def live_workers(self) -> int:
+        return sum(w.ready for w in self._workers)
+
+    def worker_infos(self) -> list[dict]:
+        return [w.info for w in self._workers if w.ready]
+
+    def kill_process(self, worker: _Worker) -> None:
+        """SIGKILLs a worker's process, as a crash or a preemption would (same node), else kills the actor."""
+        import os
+        import signal
+
+        import ray
+
+        if worker.info.get("node_id") == ray.get_runtime_context().get_node_id():
+            os.kill(worker.info["pid"], signal.SIGKILL)
+        else:
+            ray.kill(worker.actor, no_restart=True)
+        self.kills += 1
+
+    def top_up(self) -> None:
+        """Asks Ray for actors up to ``max_workers``; they start when the cluster has room."""
+        from pizero_ray import workers
+
+        while len(self._workers) < self._options.max_workers:
+            actor = workers.start_worker(
+                self._config_json, self._options.cpus_per_worker, self._options.gpus_per_worker,
+                self._options.compile_cache, dict(self._options.worker_resources),
+            )
+            self._workers.append(_Worker(actor, time.time(), ready_ref=actor.ready.remote()))
+
+    def _drop(self, worker: _Worker, kill: bool) -> None:
+        import ray
+
+        if worker in self._workers:
+            self._workers.remove(worker)
+        if kill:
+            ray.kill(worker.actor, no_restart=True)
+
+    def shutdown(self) -> None:
+        for worker in list(self._workers):
+            self._drop(worker, kill=True)
+
+    # ------------------------------------------------------------------ one iteration
+
+    def evaluate(
+        self, theta_ref, seed: int, iteration: int = 0, should_stop: Callable[[], bool] = lambda: False
+    ) -> IterationResult:
+        import ray
+        from ray.exceptions import GetTimeoutError, RayError, RayTaskError
+
+        chunk = self._config.chunk_size
+        num_chunks = self._config.num_chunks
+        needed = num_chunks if self._options.min_fraction >= 1 else max(
+            1, math.ceil(self._options.min_fraction * num_chunks))
+        pending = deque(range(num_chunks))
+        results: dict[int, np.ndarray] = {}
+        in_flight: dict = {}  # ref -> (chunk index, worker, deadline)
+        failures: dict[int, int] = {}
+        requeued = 0
+        first_results: list[float] = []
+        nodes: set[str] = set()
+
+        def fail_chunk(index: int, worker: _Worker, kill: bool) -> None:
+            nonlocal requeued
+            failures[index] = failures.get(index, 0) + 1
+            if failures[index] >= MAX_CHUNK_FAILURES:
+                raise TrainingError(f"chunk {index} failed on {failures[index]} workers; giving up")
+            pending.appendleft(index)
+            requeued += 1
+            self._drop(worker, kill=kill)
+
+        while len(results) < needed:
+            if should_stop():
+                raise Interrupted()
+            self.top_up()
+            for worker in self._workers:
+                while worker.ready and pending and worker.in_flight < self._options.in_flight_per_worker:
+                    index = pending.popleft()
+                    ref = worker.actor.evaluate_chunk.remote(theta_ref, seed, index * chunk)
+                    # The deadline allows for the chunks queued ahead of this one on the worker.
+                    deadline = time.time() + self._options.chunk_timeout_s * (worker.in_flight + 1)
+                    in_flight[ref] = (index, worker, deadline)
+                    worker.in_flight += 1
+                    if (iteration, index) in self._options.kill_schedule - self._kills_done:
+                        self._kills_done.add((iteration, index))
+                        self.kill_process(worker)
+            starting = {w.ready_ref: w for w in self._workers if not w.ready}
+            waitable = list(in_flight) + list(starting) + list(self._stale)
+            ready_refs, _ = ray.wait(waitable, num_returns=1, timeout=POLL_S) if waitable else ([], [])
+            for ref in ready_refs:
+                if ref in starting:
+                    worker = starting[ref]
+                    try:
+                        worker.info = ray.get(ref, timeout=POLL_S)
+                        worker.ready = True
+                        self._startup_failures = 0
+                        self._last_ready_time = time.time()
+                    except GetTimeoutError:
+                        pass
+                    except RayError as error:
+                        self._drop(worker, kill=False)
+                        self._startup_failures += 1
+                        if self._startup_failures >= MAX_STARTUP_FAILURES:
+                            raise TrainingError(f"workers keep dying while starting: {error}") from None
+                elif ref in self._stale:
+                    worker = self._stale.pop(ref)
+                    worker.in_flight -= 1
+                else:
+                    index, worker, _ = in_flight.pop(ref)
+                    worker.in_flight -= 1
+                    try:
+                        results[index] = ray.get(ref, timeout=self._options.chunk_timeout_s)
+                    except RayTaskError as error:
+                        raise TrainingError(f"a worker failed evaluating chunk {index}: {error}") from None
+                    except (RayError, GetTimeoutError):
+                        # The worker died (or its node did): the chunk runs elsewhere.
+                        fail_chunk(index, worker, kill=False)
+                        continue
+                    nodes.add(worker.info.get("node_id", "?"))
+                    if worker.first_result_s is None:
+                        worker.first_result_s = time.time() - worker.created
+                        first_results.append(worker.first_result_s)
+            now = time.time()
+            for ref, (index, worker, deadline) in list(in_flight.items()):
+                if now > deadline:  # a hung worker: kill it, run the chunk elsewhere
+                    del in_flight[ref]
+                    fail_chunk(index, worker, kill=True)
+            for ref, (index, worker, _) in list(in_flight.items()):
+                if worker not in self._workers:  # dropped above: its other chunks go back too
+                    del in_flight[ref]
+                    pending.appendleft(index)
+                    requeued += 1
+            if self.live_workers == 0 and now - self._last_ready_time > self._options.worker_start_timeout_s:
+                raise TrainingError(
+                    f"no worker has been ready for {self._options.worker_start_timeout_s:.0f} s "
+                    f"(asking for {self._options.cpus_per_worker} CPU / {self._options.gpus_per_worker} GPU each; "
+                    f"cluster has {ray.available_resources()} available)"
+                )
+        # min_fraction: stragglers finish in the background and are ignored.
+        for ref, (_, worker, _) in in_flight.items():
+            self._stale[ref] = worker
+        scores = np.zeros((self._config.population, 2), np.float32)
+        valid = np.zeros((self._config.population,), bool)
+        for index, chunk_scores in results.items():
+            scores[index * chunk:(index + 1) * chunk] = chunk_scores
+            valid[index * chunk:(index + 1) * chunk] = True
+        return IterationResult(scores, valid, requeued, first_results, sorted(nodes))

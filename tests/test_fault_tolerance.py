@@ -1,0 +1,72 @@
+"""Workers die, nodes leave and join: the run completes with bit-identical parameters."""
+
+import pytest
+
+from pizero_ray import driver, run_dir
+from pizero_ray.config import build_config
+from tests.conftest import OBJECT_STORE_BYTES
+
+ITERATIONS = 4
+CONFIG = build_config("tiny", population=8)  # 4 chunks of 2 pairs per iteration
+
+
+def _train(path, compile_cache_dir, on_iteration=None, **options):
+    run_dir.write_config(path, CONFIG)
+    options = {"workers": 2, "checkpoint_every": 0, **options}
+    result = driver.train(path, CONFIG, driver.RunOptions(iterations=ITERATIONS, compile_cache=compile_cache_dir,
+                                                          **options), on_iteration=on_iteration)
+    return result, [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
+
+
+@pytest.fixture(scope="module")
+def reference_hash(ray_session, tmp_path_factory, compile_cache_dir):
+    result, _ = _train(tmp_path_factory.mktemp("reference"), compile_cache_dir, workers=1)
+    return result["parameter_hash"]
+
+
+@pytest.mark.parametrize("workers", [2, 3])
+def test_any_number_of_workers_gives_the_same_parameters(tmp_path, compile_cache_dir, reference_hash, workers):
+    result, rows = _train(tmp_path, compile_cache_dir, workers=workers)
+    assert result["parameter_hash"] == reference_hash
+    assert all(row["pairs_evaluated"] == CONFIG.population for row in rows)
+
+
+def test_sigkilled_workers_mid_iteration(tmp_path, compile_cache_dir, reference_hash):
+    # Right after chunk 0 of iteration 1 and chunk 3 of iteration 2 are handed out,
+    # the process holding them is SIGKILLed.
+    result, rows = _train(tmp_path, compile_cache_dir, kill_schedule=frozenset({(1, 0), (2, 3)}))
+    assert result["workers_killed"] == 2
+    assert sum(row["requeued_chunks"] for row in rows) >= 2
+    assert result["parameter_hash"] == reference_hash
+
+
+def test_node_removed_and_another_added(tmp_path, compile_cache_dir, reference_hash, ray_cluster):
+    first = ray_cluster.add_node(num_cpus=2, resources={"elastic": 2}, object_store_memory=OBJECT_STORE_BYTES)
+    ray_cluster.wait_for_nodes()
+    replacement = {}
+
+    def swap_nodes(row):
+        if row["iteration"] == 2:
+            ray_cluster.remove_node(first)
+            replacement["node"] = ray_cluster.add_node(
+                num_cpus=2, resources={"elastic": 2}, object_store_memory=OBJECT_STORE_BYTES)
+            ray_cluster.wait_for_nodes()
+
+    try:
+        result, rows = _train(tmp_path, compile_cache_dir, on_iteration=swap_nodes,
+                              worker_resources=(("elastic", 1.0),))
+    finally:
+        for node in [replacement.get("node")]:
+            if node is not None:
+                ray_cluster.remove_node(node)
+    assert result["parameter_hash"] == reference_hash
+    assert [row["worker_nodes"] for row in rows[:2]] == [[first.node_id[:12]]] * 2
+    new_node = replacement["node"].node_id[:12]
+    assert [row["worker_nodes"] for row in rows[2:]] == [[new_node]] * 2  # the new node's actors got the work
+    assert "new_worker_first_result_s" in rows[2]
+
+
+def test_min_fraction_finishes_iterations_early(tmp_path, compile_cache_dir):
+    result, rows = _train(tmp_path, compile_cache_dir, min_fraction=0.5)
+    assert result["iteration"] == ITERATIONS
+    assert all(CONFIG.population // 2 <= row["pairs_evaluated"] <= CONFIG.population for row in rows)
