@@ -16,6 +16,7 @@ from envs.base import Environment, EnvSpec, Observation
 # name -> (module, extra factory arguments)
 _REGISTRY: dict[str, tuple[str, dict[str, Any]]] = {
     "tsp": ("envs.tsp", {}),
+    "sokoban": ("envs.sokoban", {}),
 }
 
 ENV_NAMES = tuple(sorted(_REGISTRY))
