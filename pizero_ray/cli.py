@@ -79,37 +79,50 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="print one line per iteration instead of a bar")
 
 
-def _parser() -> argparse.ArgumentParser:
+def _add_config_options(parser: argparse.ArgumentParser) -> None:
+    """What the run computes (the Config); shared by train and chaos."""
     import envs
+
+    parser.add_argument("--env", default="tsp", help=f"one of {', '.join(envs.ENV_NAMES)}")
+    parser.add_argument("--env-arg", action="append", type=_env_arg, default=[], metavar="KEY=VALUE")
+    parser.add_argument("--preset", default="default", help=f"one of {', '.join(PRESETS)}")
+    parser.add_argument("--population", type=int, help="antithetic pairs per iteration")
+    parser.add_argument("--chunk-size", type=int, help="pairs per unit of work (divides the population)")
+    parser.add_argument("--trials", type=int, help="episodes per member")
+    parser.add_argument("--sigma", type=float)
+    parser.add_argument("--lr", dest="learning_rate", type=float)
+    parser.add_argument("--weight-decay", type=float)
+    parser.add_argument("--fitness-shaping", choices=("centered_ranks", "none"))
+    parser.add_argument("--seed", type=int)
+    parser.add_argument("--planner", help="muzero, gumbel or none")
+    parser.add_argument("--simulations", dest="num_simulations", type=int)
+    parser.add_argument("--abstract-actions", dest="num_abstract_actions", type=int)
+    parser.add_argument("--hidden", dest="hidden_size", type=int)
+    parser.add_argument("--latent", dest="latent_size", type=int)
+    parser.add_argument("--memory", dest="memory_size", type=int)
+    parser.add_argument("--decoder", help="pointer or flat")
+    parser.add_argument("--decoder-inputs", help=f"comma-separated subset of {','.join(DECODER_INPUTS)}")
+    parser.add_argument("--action-selection", help="argmax or sample")
+    parser.add_argument("--action-noise", type=float)
+    parser.add_argument("--root-noise", type=float)
+
+
+def _parser() -> argparse.ArgumentParser:
 
     parser = argparse.ArgumentParser(prog="pizero", description="PiZero trained by OpenAI-ES on Ray")
     sub = parser.add_subparsers(dest="command", required=True)
 
     train = sub.add_parser("train", help="train a new run")
     train.add_argument("--run-dir", required=True)
-    train.add_argument("--env", default="tsp", help=f"one of {', '.join(envs.ENV_NAMES)}")
-    train.add_argument("--env-arg", action="append", type=_env_arg, default=[], metavar="KEY=VALUE")
-    train.add_argument("--preset", default="default", help=f"one of {', '.join(PRESETS)}")
-    train.add_argument("--population", type=int, help="antithetic pairs per iteration")
-    train.add_argument("--chunk-size", type=int, help="pairs per unit of work (divides the population)")
-    train.add_argument("--trials", type=int, help="episodes per member")
-    train.add_argument("--sigma", type=float)
-    train.add_argument("--lr", dest="learning_rate", type=float)
-    train.add_argument("--weight-decay", type=float)
-    train.add_argument("--fitness-shaping", choices=("centered_ranks", "none"))
-    train.add_argument("--seed", type=int)
-    train.add_argument("--planner", help="muzero, gumbel or none")
-    train.add_argument("--simulations", dest="num_simulations", type=int)
-    train.add_argument("--abstract-actions", dest="num_abstract_actions", type=int)
-    train.add_argument("--hidden", dest="hidden_size", type=int)
-    train.add_argument("--latent", dest="latent_size", type=int)
-    train.add_argument("--memory", dest="memory_size", type=int)
-    train.add_argument("--decoder", help="pointer or flat")
-    train.add_argument("--decoder-inputs", help=f"comma-separated subset of {','.join(DECODER_INPUTS)}")
-    train.add_argument("--action-selection", help="argmax or sample")
-    train.add_argument("--action-noise", type=float)
-    train.add_argument("--root-noise", type=float)
+    _add_config_options(train)
     _add_run_options(train)
+
+    chaos = sub.add_parser("chaos", help="train twice, once while killing workers, and compare the parameters")
+    chaos.add_argument("--run-dir", required=True, help="gets clean/ and chaos/ run dirs")
+    chaos.add_argument("--kills", type=_positive_int, default=3, help="worker processes to SIGKILL (default 3)")
+    chaos.add_argument("--chaos-seed", type=_non_negative_int, default=0, help="where the kills fall")
+    _add_config_options(chaos)
+    _add_run_options(chaos)
 
     resume = sub.add_parser("resume", help="continue a run from its newest checkpoint")
     resume.add_argument("run_dir")
@@ -275,6 +288,43 @@ def _cmd_train(args) -> int:
     return _run_training(run_path, config, options, args.no_progress)
 
 
+def _cmd_chaos(args) -> int:
+    """The determinism guarantee, shown: a clean run and one whose workers are SIGKILLed mid-iteration."""
+    import dataclasses
+
+    import numpy as np
+
+    from pizero_ray import driver
+
+    config = _train_config(args)
+    base = rundir.resolve(args.run_dir)
+    for name in ("clean", "chaos"):
+        if (base / name / rundir.CONFIG_FILE).exists():
+            raise UsageError(f"{base / name} already holds a run; choose another --run-dir")
+    options = _run_options(args, args.iterations or 10)
+    # Kills fall on random (iteration, chunk) pairs: right after that chunk is handed out,
+    # the worker holding it is SIGKILLed (on this machine; a remote worker's actor is killed).
+    rng = np.random.default_rng(args.chaos_seed)
+    slots = options.iterations * config.num_chunks
+    chosen = rng.choice(slots, size=min(args.kills, slots), replace=False)
+    schedule = frozenset((int(s) // config.num_chunks, int(s) % config.num_chunks) for s in chosen)
+    results = {}
+    for name, run_options in (("clean", options), ("chaos", dataclasses.replace(options, kill_schedule=schedule))):
+        path = base / name
+        rundir.write_config(path, config)
+        print(f"pizero chaos: {name} run in {path}", file=sys.stderr, flush=True)
+        results[name] = driver.train(path, config, run_options)
+    identical = results["clean"]["parameter_hash"] == results["chaos"]["parameter_hash"]
+    print(json.dumps({
+        "iterations": options.iterations,
+        "workers_killed": results["chaos"]["workers_killed"],
+        "clean_parameter_hash": results["clean"]["parameter_hash"],
+        "chaos_parameter_hash": results["chaos"]["parameter_hash"],
+        "identical": identical,
+    }))
+    return 0 if identical else 1
+
+
 def _cmd_resume(args) -> int:
     run_path = _existing_run(args.run_dir)
     config = rundir.read_config(run_path)
@@ -340,8 +390,10 @@ def _cmd_plot(args) -> int:
     return 0
 
 
-COMMANDS = {"train": _cmd_train, "resume": _cmd_resume, "eval": _cmd_eval, "inspect": _cmd_inspect, "plot": _cmd_plot,
-            "render": _cmd_render}
+COMMANDS = {
+    "train": _cmd_train, "resume": _cmd_resume, "eval": _cmd_eval, "inspect": _cmd_inspect,
+    "render": _cmd_render, "plot": _cmd_plot, "chaos": _cmd_chaos,
+}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -70,3 +70,15 @@ def test_min_fraction_finishes_iterations_early(tmp_path, compile_cache_dir):
     result, rows = _train(tmp_path, compile_cache_dir, min_fraction=0.5)
     assert result["iteration"] == ITERATIONS
     assert all(CONFIG.population // 2 <= row["pairs_evaluated"] <= CONFIG.population for row in rows)
+
+
+def test_chaos_command_reports_identical_hashes(tmp_path, compile_cache_dir, capsys):
+    import json
+
+    from pizero_ray.cli import main
+
+    code = main(["chaos", "--run-dir", str(tmp_path), "--preset", "tiny", "--population", "8", "--iterations", "3",
+                 "--kills", "2", "--compile-cache", compile_cache_dir, "--no-progress"])
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and report["identical"] and report["workers_killed"] == 2
+    assert report["clean_parameter_hash"] == report["chaos_parameter_hash"]
