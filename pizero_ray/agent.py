@@ -37,9 +37,16 @@ def init_params(key: jax.Array, config: Config, spec: EnvSpec) -> networks.Param
         "decoder": decoder.init(keys[2], config, spec),
     }
     if config.planner != "none":
-        params["dynamics"] = networks.gru_init(keys[3], k, latent)
+        # With chance nodes the dynamics GRU reads the abstract chance outcome;
+        # the abstract action first leads to an afterstate.
+        dynamics_input = config.chance_outcomes if config.chance_outcomes > 0 else k
+        params["dynamics"] = networks.gru_init(keys[3], dynamics_input, latent)
         params["reward"] = networks.dense_init(keys[4], latent, 1)
         params["prediction"] = networks.mlp_init(keys[5], (latent, h, 1 + k))
+        if config.chance_outcomes > 0:
+            after_keys = jax.random.split(jax.random.fold_in(key, 1), 2)
+            params["afterstate"] = networks.gru_init(after_keys[0], k, latent)
+            params["afterstate_prediction"] = networks.mlp_init(after_keys[1], (latent, h, 1 + config.chance_outcomes))
     return params
 
 

@@ -96,6 +96,8 @@ def _add_config_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int)
     parser.add_argument("--planner", help="muzero, gumbel or none")
     parser.add_argument("--simulations", dest="num_simulations", type=int)
+    parser.add_argument("--chance-outcomes", dest="chance_outcomes", type=int,
+                        help="abstract chance outcomes per afterstate (0: deterministic abstract model)")
     parser.add_argument("--abstract-actions", dest="num_abstract_actions", type=int)
     parser.add_argument("--hidden", dest="hidden_size", type=int)
     parser.add_argument("--latent", dest="latent_size", type=int)
@@ -155,9 +157,11 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-_CONFIG_FIELDS = ("population", "chunk_size", "trials", "sigma", "learning_rate", "weight_decay", "fitness_shaping",
-                  "seed", "planner", "num_simulations", "num_abstract_actions", "hidden_size", "latent_size",
-                  "memory_size", "decoder", "action_selection", "action_noise", "root_noise")
+_CONFIG_FIELDS = (
+    "population", "chunk_size", "trials", "sigma", "learning_rate", "weight_decay", "fitness_shaping", "seed",
+    "planner", "num_simulations", "chance_outcomes", "num_abstract_actions", "hidden_size", "latent_size",
+    "memory_size", "decoder", "action_selection", "action_noise", "root_noise",
+)
 
 
 def _train_config(args):

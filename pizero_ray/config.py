@@ -35,6 +35,7 @@ class Config:
     num_abstract_actions: int = 4
     planner: str = "muzero"
     num_simulations: int = 10
+    chance_outcomes: int = 0  # > 0: chance nodes (Stochastic MuZero search) with this many abstract outcomes
     pb_c_init: float = 1.25
     pb_c_base: float = 19652.0
     abstract_discount: float = 1.0
@@ -70,6 +71,11 @@ class Config:
              f"num_simulations must be positive with planner {self.planner!r}, got {self.num_simulations}")
         need(self.num_abstract_actions >= 2 or self.planner == "none",
              f"num_abstract_actions must be at least 2 to plan, got {self.num_abstract_actions}")
+        need(isinstance(self.chance_outcomes, int) and self.chance_outcomes >= 0,
+             f"chance_outcomes must be a non-negative integer, got {self.chance_outcomes!r}")
+        need(self.chance_outcomes == 0 or self.planner in ("muzero", "none"),
+             f"chance nodes need the muzero planner (mctx has no stochastic Gumbel search), got {self.planner!r}")
+        need(self.chance_outcomes != 1, "chance_outcomes must be 0 (none) or at least 2, got 1")
         need(self.decoder in DECODERS, f"unknown decoder {self.decoder!r} (choose from {', '.join(DECODERS)})")
         need(len(self.decoder_inputs) > 0, "decoder_inputs must name at least one of " + ", ".join(DECODER_INPUTS))
         for item in self.decoder_inputs:
@@ -130,7 +136,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     "default": {},
     "paper": dict(
         learning_rate=1e-3, sigma=0.1, population=1000, trials=5, hidden_size=64,
-        latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=10,
+        latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=10, chance_outcomes=3,
         chunk_size=40,
     ),
     # For tests and smoke runs: compiles in seconds.

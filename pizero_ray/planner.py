@@ -35,11 +35,20 @@ def dynamics(params: networks.Params, latent: jax.Array, abstract_action: jax.Ar
     return reward, next_latent
 
 
+def afterstate(params: networks.Params, latent: jax.Array, abstract_action: jax.Array, k: int):
+    """With chance nodes: the abstract action leads to an afterstate, its value and chance logits."""
+    after = networks.gru(params["afterstate"], latent, jax.nn.one_hot(abstract_action, k))
+    out = networks.mlp(params["afterstate_prediction"], after)
+    return after, out[..., 0], out[..., 1:]
+
+
 def plan(params: networks.Params, config: Config, latent: jax.Array, key: jax.Array) -> PlanResult:
     """Runs the configured search from a batch of abstract states [B, L]."""
     k = config.num_abstract_actions
     value, logits = predict(params, latent)
     root = mctx.RootFnOutput(prior_logits=logits, value=value, embedding=latent)
+    if config.chance_outcomes > 0:
+        return _plan_with_chance(params, config, root, key)
 
     def recurrent_fn(params, rng, action, embedding):
         del rng
@@ -69,3 +78,34 @@ def plan(params: networks.Params, config: Config, latent: jax.Array, key: jax.Ar
         raise ValueError(f"plan() needs a search planner, got {config.planner!r}")
     root_value = output.search_tree.summary().value
     return PlanResult(abstract_action.astype(jnp.int32), output.action_weights, root_value)
+
+
+def _plan_with_chance(params: networks.Params, config: Config, root: mctx.RootFnOutput, key: jax.Array) -> PlanResult:
+    """Stochastic MuZero search: abstract action -> afterstate -> abstract chance outcome -> state.
+
+    The C chance outcomes are as invented as everything else in the model: ES
+    decides what, if anything, they stand for (in 2048, where the tile appears).
+    """
+    k, c = config.num_abstract_actions, config.chance_outcomes
+
+    def decision_fn(params, rng, action, embedding):
+        del rng
+        after, after_value, chance_logits = afterstate(params, embedding, action, k)
+        return mctx.DecisionRecurrentFnOutput(chance_logits=chance_logits, afterstate_value=after_value), after
+
+    def chance_fn(params, rng, outcome, after):
+        del rng
+        reward, next_latent = dynamics(params, after, outcome, c)
+        next_value, next_logits = predict(params, next_latent)
+        output = mctx.ChanceRecurrentFnOutput(
+            action_logits=next_logits, value=next_value, reward=reward,
+            discount=jnp.full_like(reward, config.abstract_discount),
+        )
+        return output, next_latent
+
+    output = mctx.stochastic_muzero_policy(
+        params, key, root, decision_fn, chance_fn, config.num_simulations,
+        dirichlet_fraction=config.root_noise, pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base,
+    )
+    abstract_action = jnp.argmax(output.action_weights, axis=-1)
+    return PlanResult(abstract_action.astype(jnp.int32), output.action_weights, output.search_tree.summary().value)

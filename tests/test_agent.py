@@ -88,3 +88,26 @@ def test_continuous_actions_stay_in_bounds():
     action, _, _ = agent.act(params, config, spec, agent.initial_memory(config, 16), obs, jax.random.PRNGKey(2))
     assert action.shape == (16, 2)
     assert np.all((np.asarray(action) >= -1.0) & (np.asarray(action) <= 2.0))
+
+
+def test_chance_nodes_search_an_afterstate_model(tsp_env):
+    config = build_config("tiny", chance_outcomes=3, num_simulations=8, num_abstract_actions=3)
+    params = agent.init_params(jax.random.PRNGKey(0), config, tsp_env.spec)
+    assert params["dynamics"]["input"]["w"].shape[0] == 3  # the dynamics GRU reads a chance outcome
+    latent = jax.random.normal(jax.random.PRNGKey(1), (4, config.latent_size))
+    plan = jax.jit(lambda p: planner.plan(p, config, latent, jax.random.PRNGKey(2)))
+    result = plan(params)
+    assert result.visit_probs.shape == (4, 3)
+    np.testing.assert_allclose(np.asarray(result.visit_probs).sum(-1), 1.0, atol=1e-5)
+    # The search reads the afterstate model: changing its chance head changes the root value.
+    head = params["afterstate_prediction"]["layer1"]
+    changed = dict(params, afterstate_prediction={**params["afterstate_prediction"],
+                                                  "layer1": {"w": head["w"] * 5.0, "b": head["b"] + 2.0}})
+    assert not np.allclose(plan(changed).root_value, result.root_value)
+
+
+def test_chance_nodes_need_the_muzero_planner():
+    from pizero_ray.config import ConfigError
+
+    with pytest.raises(ConfigError, match="chance nodes need the muzero planner"):
+        build_config("tiny", chance_outcomes=3, planner="gumbel")
