@@ -17,6 +17,9 @@ from envs.base import Environment, EnvSpec, Observation
 _REGISTRY: dict[str, tuple[str, dict[str, Any]]] = {
     "tsp": ("envs.tsp", {}),
     "sokoban": ("envs.sokoban", {}),
+    "2048": ("envs.game2048", {}),
+    "pacman": ("envs.pacman", {"partial": False}),
+    "pacman-po": ("envs.pacman", {"partial": True}),
 }
 
 ENV_NAMES = tuple(sorted(_REGISTRY))
