@@ -26,6 +26,9 @@ Two optional hooks live beside the rules, outside the jitted path:
 * ``references(initial_states, scores) -> dict``: reference solvers or
   policies evaluated on the same initial states as the agent (batched, leading
   dimension = episodes), reported by ``pizero eval`` next to the agent's score.
+* ``episode_metrics(final_states) -> dict[str, array [E]]``: what else an
+  episode's end says about the agent (2048's highest tile, say); ``pizero
+  eval`` reports the mean of each as ``mean_<name>``.
 """
 
 from __future__ import annotations
@@ -74,6 +77,7 @@ class Environment(NamedTuple):
     step: Callable[[State, jax.Array], tuple[State, Observation, jax.Array, jax.Array]]
     render: Callable[[State], np.ndarray] | None = None
     references: Callable[[State, np.ndarray], dict[str, float]] | None = None
+    episode_metrics: Callable[[State], dict[str, np.ndarray]] | None = None
 
 
 def identity_action_features(num_actions: int) -> jax.Array:

@@ -77,6 +77,11 @@ class Game2048State(NamedTuple):
     game: Any  # Jumanji's game_2048 State (board of exponents, step_count, action_mask, score, key)
 
 
+def episode_metrics(final_states: Game2048State) -> dict[str, np.ndarray]:
+    """The agent's highest tile in each evaluated game."""
+    return {"highest_tile": np.asarray(jax.vmap(highest_tile)(final_states.game.board))}
+
+
 def highest_tile(board: jax.Array) -> jax.Array:
     """Value of the largest tile on a board of exponents (0 on an empty board)."""
     top = jnp.max(board)
@@ -132,7 +137,7 @@ def make(horizon: int = 200, tile_encoding: str = "log2") -> Environment:
         num_actions=NUM_MOVES,
         action_feature_size=NUM_MOVES,
     )
-    env = Environment("2048", spec, reset, step, render=render)
+    env = Environment("2048", spec, reset, step, render=render, episode_metrics=episode_metrics)
     players = {"random": make_player(env, greedy=False), "greedy": make_player(env, greedy=True)}
     return env._replace(references=functools.partial(references, players))
 

@@ -105,7 +105,8 @@ def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
             env = envs.make(config.env, **{**config.env_kwargs(), **env_args})
         except ValueError as error:
             raise ConfigError(str(error)) from None
-        if env.spec != trained_env.spec:
+        # A different horizon is fine (longer games, say); different shapes are not.
+        if env.spec._replace(horizon=0) != trained_env.spec._replace(horizon=0):
             raise ConfigError(f"env args {env_args} change the environment's shapes: the trained agent cannot act")
     restored = checkpoints.restore_latest(run_path, theta, opt_state)
     if restored is None:

@@ -24,7 +24,9 @@ def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None
 
     config, iteration, theta, env, layout = driver.load_run(run_path, env_args)
     key = jax.random.PRNGKey(seed)
-    scores = np.asarray(rollout.make_evaluator(config, env, layout, episodes)(theta, key), dtype=np.float64)
+    evaluator = rollout.make_evaluator(config, env, layout, episodes, final_states=True)
+    scores, final_states = evaluator(theta, key)
+    scores = np.asarray(scores, dtype=np.float64)
     low, high = confidence_interval95(scores)
     result = {
         "env": config.env,
@@ -36,6 +38,9 @@ def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None
         "std_score": float(scores.std(ddof=1)) if episodes > 1 else 0.0,
         "ci95": [low, high],
     }
+    if env.episode_metrics is not None:
+        for name, values in env.episode_metrics(final_states).items():
+            result[f"mean_{name}"] = float(np.mean(values))
     if env.references is not None:
         initial_states, _ = jax.vmap(env.reset)(rollout.episode_reset_keys(key, episodes))
         result.update(env.references(initial_states, scores))

@@ -69,17 +69,18 @@ def _play(params: Params, config: Config, env: Environment, key: jax.Array, num_
 
     carry = (initial_states, observations, memory, done, score)
     carry, recorded = jax.lax.scan(step, carry, jnp.arange(env.spec.horizon))
-    return initial_states, carry[-1], recorded
+    final_states, score = carry[0], carry[-1]
+    return initial_states, final_states, score, recorded
 
 
 def run_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:
     """Plays ``num_episodes`` episodes to the horizon; returns their scores [E]."""
-    return _play(params, config, env, key, num_episodes, record=False)[1]
+    return _play(params, config, env, key, num_episodes, record=False)[2]
 
 
 def record_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> Trajectory:
     """Like ``run_episodes`` (same episodes for the same key), keeping every step."""
-    initial_states, scores, (states, actions, rewards, dones) = _play(params, config, env, key, num_episodes, True)
+    initial_states, _, scores, (states, actions, rewards, dones) = _play(params, config, env, key, num_episodes, True)
     return Trajectory(initial_states, states, actions, rewards, dones, scores)
 
 
@@ -102,10 +103,11 @@ def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
     return jax.jit(evaluate)
 
 
-def make_evaluator(config: Config, env: Environment, layout: FlatParams, num_episodes: int):
-    """jit(theta [D], key) -> scores [num_episodes] of the unperturbed agent."""
+def make_evaluator(config: Config, env: Environment, layout: FlatParams, num_episodes: int, final_states: bool = False):
+    """jit(theta [D], key) -> scores [num_episodes] of the unperturbed agent (and final states if asked)."""
 
-    def evaluate(theta: jax.Array, key: jax.Array) -> jax.Array:
-        return run_episodes(layout.unravel(theta), config, env, key, num_episodes)
+    def evaluate(theta: jax.Array, key: jax.Array):
+        _, last, scores, _ = _play(layout.unravel(theta), config, env, key, num_episodes, record=False)
+        return (scores, last) if final_states else scores
 
     return jax.jit(evaluate)

@@ -195,3 +195,11 @@ def test_bad_parameters_are_one_line_errors():
         envs.make("2048", tile_encoding="bits")
     with pytest.raises(ValueError, match="bad parameters"):
         envs.make("2048", board=5)
+
+
+def test_episode_metrics_report_the_highest_tile():
+    env = envs.make("2048", horizon=5)
+    states, _ = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(0), 3))
+    board = states.game.board.at[0, 0, 0].set(7).at[1, 2, 3].set(3)
+    metrics = env.episode_metrics(states._replace(game=states.game.replace(board=board)))
+    assert list(metrics["highest_tile"][:2]) == [128, 8]
