@@ -149,6 +149,10 @@ def _parser() -> argparse.ArgumentParser:
     inspect.add_argument("run_dir")
     inspect.add_argument("--json", action="store_true")
 
+    bench = sub.add_parser("bench", help="measure rollout, trainer and driver speed (TSP10, paper agent)")
+    bench.add_argument("--quick", action="store_true", help="a reduced version (population 64), about a minute")
+    bench.add_argument("--json", action="store_true", help="print one JSON object")
+
     plot = sub.add_parser("plot", help="learning curves of one or more runs as a PNG")
     plot.add_argument("run_dirs", nargs="+")
     plot.add_argument("--out", required=True)
@@ -382,6 +386,15 @@ def _cmd_render(args) -> int:
     return 0
 
 
+def _cmd_bench(args) -> int:
+    from pizero_ray import bench
+
+    plan = bench.QUICK if args.quick else bench.FULL
+    result = bench.run(plan, progress=lambda text: print(f"pizero bench: {text}", file=sys.stderr, flush=True))
+    print(bench.to_json(result) if args.json else bench.table(result))
+    return 0
+
+
 def _cmd_plot(args) -> int:
     from pizero_ray.plot import plot_runs
 
@@ -396,7 +409,7 @@ def _cmd_plot(args) -> int:
 
 COMMANDS = {
     "train": _cmd_train, "resume": _cmd_resume, "eval": _cmd_eval, "inspect": _cmd_inspect,
-    "render": _cmd_render, "plot": _cmd_plot, "chaos": _cmd_chaos,
+    "render": _cmd_render, "plot": _cmd_plot, "chaos": _cmd_chaos, "bench": _cmd_bench,
 }
 
 

@@ -1,0 +1,29 @@
+"""The benchmark's pieces compute what they claim (speed itself is not asserted: that is the bench's job)."""
+
+from pizero_ray import bench
+from pizero_ray.config import build_config
+
+
+def test_rollout_measures_agent_steps_of_the_whole_population():
+    config = build_config("tiny", population=4, chunk_size=2)
+    result = bench.rollout(config, repeats=1)
+    steps = 4 * 2 * 10  # pairs x members x TSP10 horizon
+    assert result["agent_steps_per_s"] * result["iteration_s"] == steps or abs(
+        result["agent_steps_per_s"] * result["iteration_s"] - steps) < 1e-6 * steps
+    assert result["simulations_per_s"] == result["agent_steps_per_s"] * config.num_simulations
+    assert result["compile_s"] > 0
+
+
+def test_traffic_is_parameters_out_and_eight_bytes_per_pair_back():
+    config = build_config("tiny", population=8, chunk_size=4)
+    result = bench.traffic(config, parameters=1000)
+    assert result["driver_to_workers_bytes_per_node"] == 4000
+    assert result["workers_to_driver_payload_bytes"] == 64
+    assert result["workers_to_driver_bytes"] > 64  # plus framing, two chunks
+
+
+def test_bench_config_is_the_papers_agent():
+    config = bench.bench_config(1000, 40)
+    assert (config.hidden_size, config.latent_size, config.num_abstract_actions, config.num_simulations) == (
+        64, 64, 4, 10)
+    assert config.env == "tsp" and config.num_chunks == 25
