@@ -49,9 +49,13 @@ QUICK = BenchPlan(population=64, chunk_size=16, repeats=3, trainer_iterations=3,
 
 
 def bench_config(population: int, chunk_size: int, simulations: int = 10) -> Config:
-    """The paper's agent on TSP10 (one trial per member, as the trainer's default)."""
+    """The paper's agent on TSP10 (one trial per member, as the trainer's default).
+
+    The chunk is the largest divisor of the population not above ``chunk_size``.
+    """
+    chunk = max(c for c in range(1, min(chunk_size, population) + 1) if population % c == 0)
     return build_config(
-        "default", env="tsp", population=population, chunk_size=min(chunk_size, population),
+        "default", env="tsp", population=population, chunk_size=chunk,
         hidden_size=64, latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=simulations,
     )
 

@@ -28,3 +28,9 @@ def test_bench_config_is_the_papers_agent():
     assert (config.hidden_size, config.latent_size, config.num_abstract_actions, config.num_simulations) == (
         64, 64, 4, 10)
     assert config.env == "tsp" and config.num_chunks == 25
+
+
+def test_bench_chunks_divide_any_population():
+    assert bench.bench_config(256, 40).chunk_size == 32
+    assert bench.bench_config(64, 40).chunk_size == 32
+    assert bench.bench_config(7, 40).chunk_size == 7
