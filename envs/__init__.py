@@ -16,10 +16,13 @@ from envs.base import Environment, EnvSpec, Observation
 # name -> (module, extra factory arguments)
 _REGISTRY: dict[str, tuple[str, dict[str, Any]]] = {
     "tsp": ("envs.tsp", {}),
-    "sokoban": ("envs.sokoban", {}),
+    "collect": ("envs.collect", {}),
+    "flp": ("envs.flp", {"objective": "max"}),
+    "flp-mean": ("envs.flp", {"objective": "mean"}),
     "2048": ("envs.game2048", {}),
     "pacman": ("envs.pacman", {"partial": False}),
     "pacman-po": ("envs.pacman", {"partial": True}),
+    "sokoban": ("envs.sokoban", {}),
 }
 
 ENV_NAMES = tuple(sorted(_REGISTRY))

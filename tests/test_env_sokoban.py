@@ -221,12 +221,12 @@ def test_batched_reset_and_step_compile_once(env):
 
     @jax.jit
     @chex.assert_max_traces(n=1)
-    def batched_step(states, actions):
+    def sokoban_batched_step(states, actions):
         return jax.vmap(env.step)(states, actions)
 
     states, obs = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
     for t in range(3):
-        states, obs, reward, done = batched_step(states, jnp.full((8,), t, jnp.int32))
+        states, obs, reward, done = sokoban_batched_step(states, jnp.full((8,), t, jnp.int32))
     assert obs.vector.shape == (8, env.spec.observation_size)
     assert reward.shape == (8,) and done.shape == (8,)
     assert np.all(np.asarray(states.t) == 3)

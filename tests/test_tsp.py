@@ -75,12 +75,12 @@ def test_batched_reset_and_step_compile_once(tsp_env):
 
     @jax.jit
     @chex.assert_max_traces(n=1)
-    def batched_step(states, actions):
+    def tsp_batched_step(states, actions):
         return jax.vmap(tsp_env.step)(states, actions)
 
     states, obs = jax.jit(jax.vmap(tsp_env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
     for t in range(3):
-        states, obs, _, _ = batched_step(states, jnp.full((8,), t, jnp.int32))
+        states, obs, _, _ = tsp_batched_step(states, jnp.full((8,), t, jnp.int32))
     assert obs.vector.shape == (8, tsp_env.spec.observation_size)
 
 
