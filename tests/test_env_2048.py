@@ -166,20 +166,6 @@ def test_references_are_deterministic_and_greedy_beats_random(env):
     assert first["random_highest_tile"] >= 8
 
 
-def test_batched_2048_reset_and_step_compile_once(env):
-    import chex
-
-    @jax.jit
-    @chex.assert_max_traces(n=1)
-    def batched_2048_step(states, actions):
-        return jax.vmap(env.step)(states, actions)
-
-    states, obs = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
-    for _ in range(3):
-        states, obs, reward, done = batched_2048_step(states, jnp.argmax(obs.action_mask, axis=-1))
-    assert obs.vector.shape == (8, env.spec.observation_size) and reward.shape == done.shape == (8,)
-
-
 def test_render_draws_the_board(env):
     state = with_board(env, [[1, 2, 11, 12], [0, 5, 0, 7]])
     image = env.render(jax.tree_util.tree_map(np.asarray, state))

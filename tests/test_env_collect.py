@@ -93,21 +93,6 @@ def test_score_is_minus_the_coins_left_after_the_horizon(env):
     assert np.asarray(obs.vector)[72:].sum() == 0  # no timestep left
 
 
-def test_batched_reset_and_step_compile_once(env):
-    import chex
-
-    @jax.jit
-    @chex.assert_max_traces(n=1)
-    def collect_batched_step(states, actions):
-        return jax.vmap(env.step)(states, actions)
-
-    states, obs = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
-    for t in range(4):
-        states, obs, rewards, _ = collect_batched_step(states, jnp.full((8,), t, jnp.int32))
-    assert obs.vector.shape == (8, env.spec.observation_size) and rewards.shape == (8,)
-    assert (np.asarray(states.t) == 4).all()
-
-
 def test_greedy_goes_to_the_nearest_coin_vertically_first():
     # (3, 5) and (5, 3) are both 2 away from (3, 3): the lower row-major index, (3, 5), wins
     state = _state((3, 3), [(3, 5), (5, 3), (6, 6)])

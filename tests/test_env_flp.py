@@ -117,22 +117,6 @@ def test_actions_are_clipped_into_the_unit_square():
     assert rewards[-1] == pytest.approx(-1.0)  # client (0, 0): 1 from both (0, 1) and (1, 0)
 
 
-def test_batched_reset_and_step_compile_once(env):
-    import chex
-
-    @jax.jit
-    @chex.assert_max_traces(n=1)
-    def flp_batched_step(states, actions):
-        return jax.vmap(env.step)(states, actions)
-
-    states, obs = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
-    rewards = None
-    for t in range(3):
-        states, obs, rewards, dones = flp_batched_step(states, jnp.full((8, 2), 0.25 * t, jnp.float32))
-    assert obs.vector.shape == (8, env.spec.observation_size)
-    assert bool(dones.all()) and bool((rewards < 0).all())
-
-
 def test_farthest_first_starts_near_the_centroid_and_takes_the_farthest():
     clients = jnp.asarray([(0.0, 0.0), (1.0, 0.0), (0.5, 0.45), (0.5, 1.0)])  # centroid (0.5, 0.3625)
     facilities = flp.farthest_first(clients, 3)

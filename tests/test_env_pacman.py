@@ -181,24 +181,6 @@ def test_partial_observation_hides_what_lies_beyond_the_window(po_env, maze, ini
     np.testing.assert_array_equal(pacman.partial_vector(maze, far.game, 64, 5), obs.vector)
 
 
-@pytest.mark.parametrize("name", ["pacman", "pacman-po"])
-def test_batched_pacman_reset_and_step_compile_once(name):
-    import chex
-
-    env = envs.make(name, horizon=8)
-    chex.clear_trace_counter()  # chex counts per test source: the other variant's traces must not count
-
-    @jax.jit
-    @chex.assert_max_traces(n=1)
-    def batched_pacman_step(states, actions):
-        return jax.vmap(env.step)(states, actions)
-
-    states, obs = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 4))
-    for _ in range(3):
-        states, obs, reward, done = batched_pacman_step(states, jnp.argmax(obs.action_mask, axis=-1))
-    assert obs.vector.shape == (4, env.spec.observation_size) and reward.shape == done.shape == (4,)
-
-
 def test_random_reference_is_deterministic(po_env):
     initial_states, _ = jax.vmap(po_env.reset)(jax.random.split(jax.random.PRNGKey(0), 8))
     first = po_env.references(initial_states, np.zeros(8))

@@ -216,22 +216,6 @@ def test_reset_samples_every_level_of_a_bank(tmp_path):
             np.testing.assert_array_equal(getattr(states, field)[e], getattr(expected, field))
 
 
-def test_batched_reset_and_step_compile_once(env):
-    import chex
-
-    @jax.jit
-    @chex.assert_max_traces(n=1)
-    def sokoban_batched_step(states, actions):
-        return jax.vmap(env.step)(states, actions)
-
-    states, obs = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
-    for t in range(3):
-        states, obs, reward, done = sokoban_batched_step(states, jnp.full((8,), t, jnp.int32))
-    assert obs.vector.shape == (8, env.spec.observation_size)
-    assert reward.shape == (8,) and done.shape == (8,)
-    assert np.all(np.asarray(states.t) == 3)
-
-
 def test_references_report_solved_fractions_and_a_fixed_random_agent(env):
     states, _ = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(1), 32))
     scores = np.array([4.0] * 8 + [1.0] * 24)

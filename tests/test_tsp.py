@@ -70,20 +70,6 @@ def test_unmasked_variant_allows_disturbing_placed_positions():
     assert list(np.asarray(state.tour)) == [1, 3, 2, 0, 4]
 
 
-def test_batched_reset_and_step_compile_once(tsp_env):
-    import chex
-
-    @jax.jit
-    @chex.assert_max_traces(n=1)
-    def tsp_batched_step(states, actions):
-        return jax.vmap(tsp_env.step)(states, actions)
-
-    states, obs = jax.jit(jax.vmap(tsp_env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
-    for t in range(3):
-        states, obs, _, _ = tsp_batched_step(states, jnp.full((8,), t, jnp.int32))
-    assert obs.vector.shape == (8, tsp_env.spec.observation_size)
-
-
 def test_held_karp_matches_brute_force():
     coords = np.random.default_rng(0).uniform(size=(3, 7, 2))
     exact = tsp.optimal_tour_length(coords)
