@@ -64,12 +64,15 @@ def head_node():
 def test_job_submit_runs_a_training(head_node, tmp_path, compile_cache_dir):
     address, env = head_node
     run_dir = tmp_path / "job-run"  # absolute: the job runs in a temporary working dir
-    submit = subprocess.run(
-        [str(BIN / "ray"), "job", "submit", "--address", address, "--working-dir", str(REPO), "--",
-         "pizero", "train", "--env", "tsp", "--preset", "tiny", "--iterations", "2", "--workers", "1",
-         "--run-dir", str(run_dir), "--compile-cache", compile_cache_dir, "--no-progress"],
-        env=env, capture_output=True, text=True, timeout=600,
-    )
+    command = [str(BIN / "ray"), "job", "submit", "--address", address, "--working-dir", str(REPO), "--",
+               "pizero", "train", "--env", "tsp", "--preset", "tiny", "--iterations", "2", "--workers", "1",
+               "--run-dir", str(run_dir), "--compile-cache", compile_cache_dir, "--no-progress"]
+    for _ in range(30):
+        submit = subprocess.run(command, env=env, capture_output=True, text=True, timeout=600)
+        # The job server answers before the head's agent can take jobs; Ray says so and asks to retry.
+        if "No available agent to submit job" not in submit.stdout + submit.stderr:
+            break
+        time.sleep(2)
     assert submit.returncode == 0, submit.stdout + submit.stderr
     assert "succeeded" in submit.stdout.lower()
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
