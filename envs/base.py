@@ -80,6 +80,13 @@ class Environment(NamedTuple):
     episode_metrics: Callable[[State], dict[str, np.ndarray]] | None = None
 
 
+def require_int(env_name: str, name: str, value, low: int, high: int | None = None) -> None:
+    """A one-line ValueError naming the environment, the parameter and the value unless low <= value (<= high)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < low or (high is not None and value > high):
+        bound = f"in {low}..{high}" if high is not None else f"at least {low}"
+        raise ValueError(f"{env_name}: {name} must be an integer {bound}, got {value!r}")
+
+
 def identity_action_features(num_actions: int) -> jax.Array:
     """Action features for environments whose actions have no structure."""
     return jnp.eye(num_actions, dtype=jnp.float32)

@@ -51,7 +51,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, identity_action_features
+from envs.base import Environment, EnvSpec, Observation, identity_action_features, require_int
 
 NUM_MOVES = 4
 # (row, column) offsets of the moves; row 0 is the top of the grid.
@@ -79,18 +79,13 @@ def border_walls(size: int) -> np.ndarray:
     return walls
 
 
-def _check_int(name: str, value, low: int, high: int | None = None) -> None:
-    ok = isinstance(value, int) and not isinstance(value, bool) and value >= low and (high is None or value <= high)
-    if not ok:
-        bound = f"in {low}..{high}" if high is not None else f"at least {low}"
-        raise ValueError(f"collect: {name} must be an integer {bound}, got {value!r}")
 
 
 def make(num_coins: int = 12, horizon: int = 20, size: int = 8) -> Environment:
-    _check_int("size", size, 4)  # an interior of at least 2x2: room for the agent and a coin
+    require_int("collect", "size", size, 4)  # an interior of at least 2x2: room for the agent and a coin
     interior = size - 2
-    _check_int("num_coins", num_coins, 1, interior * interior - 1)
-    _check_int("horizon", horizon, 1)
+    require_int("collect", "num_coins", num_coins, 1, interior * interior - 1)
+    require_int("collect", "horizon", horizon, 1)
     walls = jnp.asarray(border_walls(size))
     interior_cells = jnp.asarray([(r, c) for r in range(1, size - 1) for c in range(1, size - 1)], dtype=jnp.int32)
     moves = jnp.asarray(MOVES)

@@ -60,7 +60,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation
+from envs.base import Environment, EnvSpec, Observation, require_int
 
 OBJECTIVES = ("max", "mean")
 LLOYD_ITERATIONS = 10
@@ -92,16 +92,11 @@ def cost(clients: jax.Array, facilities: jax.Array, objective: str) -> jax.Array
     return jnp.max(distances) if objective == "max" else jnp.mean(distances)
 
 
-def _check_int(name: str, value, low: int, high: int | None = None) -> None:
-    ok = isinstance(value, int) and not isinstance(value, bool) and value >= low and (high is None or value <= high)
-    if not ok:
-        bound = f"in {low}..{high}" if high is not None else f"at least {low}"
-        raise ValueError(f"flp: {name} must be an integer {bound}, got {value!r}")
 
 
 def make(num_clients: int = 20, num_facilities: int = 3, objective: str = "max") -> Environment:
-    _check_int("num_clients", num_clients, 1)
-    _check_int("num_facilities", num_facilities, 1, num_clients)
+    require_int("flp", "num_clients", num_clients, 1)
+    require_int("flp", "num_facilities", num_facilities, 1, num_clients)
     if objective not in OBJECTIVES:
         raise ValueError(f"flp: objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
     n, m = num_clients, num_facilities

@@ -47,7 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from envs import boxoban, sokoban_generator
-from envs.base import Environment, EnvSpec, Observation, identity_action_features
+from envs.base import Environment, EnvSpec, Observation, identity_action_features, require_int
 
 ROOM_SIZE = boxoban.ROOM_SIZE
 MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int32)  # up, down, left, right (row, column)
@@ -126,7 +126,7 @@ def make(
     generator_seed: int = 0,
     pull_rounds: int = 8,
 ) -> Environment:
-    _check_int("horizon", horizon, 1)
+    require_int("sokoban", "horizon", horizon, 1)
     bank = level_bank(levels, num_levels, num_boxes, generator_seed, pull_rounds)
     codes = jnp.asarray(bank)
     num_bank_levels = bank.shape[0]
@@ -169,20 +169,15 @@ def make(
     )
 
 
-def _check_int(name: str, value, low: int, high: int | None = None) -> None:
-    """A one-line ValueError naming the value unless low <= value (<= high)."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < low or (high is not None and value > high):
-        bounds = f"in [{low}, {high}]" if high is not None else f">= {low}"
-        raise ValueError(f"sokoban: {name} must be an integer {bounds}, got {value!r}")
 
 
 def level_bank(levels: str | None, num_levels: int, num_boxes: int, generator_seed: int, pull_rounds: int):
     """Tile codes int8 [L, 10, 10]: the loaded files, or the generated bank."""
     # generator parameters are checked even when files are loaded: a bad value is a mistake either way
-    _check_int("num_levels", num_levels, 1)
-    _check_int("num_boxes", num_boxes, 1, sokoban_generator.MAX_BOXES)
-    _check_int("generator_seed", generator_seed, 0)
-    _check_int("pull_rounds", pull_rounds, 1)
+    require_int("sokoban", "num_levels", num_levels, 1)
+    require_int("sokoban", "num_boxes", num_boxes, 1, sokoban_generator.MAX_BOXES)
+    require_int("sokoban", "generator_seed", generator_seed, 0)
+    require_int("sokoban", "pull_rounds", pull_rounds, 1)
     if levels is not None:
         if not isinstance(levels, str) or not levels:
             raise ValueError(f"sokoban: levels must be a file or directory path, got {levels!r}")

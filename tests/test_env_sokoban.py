@@ -255,12 +255,12 @@ def test_spec_does_not_depend_on_the_levels(env, tmp_path):
 @pytest.mark.parametrize(
     "args, message",
     [
-        ({"horizon": 0}, "sokoban: horizon must be an integer >= 1, got 0"),
-        ({"horizon": True}, "horizon must be an integer >= 1, got True"),
-        ({"num_levels": 0}, "num_levels must be an integer >= 1, got 0"),
-        ({"num_boxes": 9}, "num_boxes must be an integer in [1, 8], got 9"),
-        ({"generator_seed": -1}, "generator_seed must be an integer >= 0, got -1"),
-        ({"pull_rounds": "many"}, "pull_rounds must be an integer >= 1, got 'many'"),
+        ({"horizon": 0}, "sokoban: horizon must be an integer at least 1, got 0"),
+        ({"horizon": True}, "horizon must be an integer at least 1, got True"),
+        ({"num_levels": 0}, "num_levels must be an integer at least 1, got 0"),
+        ({"num_boxes": 9}, "num_boxes must be an integer in 1..8, got 9"),
+        ({"generator_seed": -1}, "generator_seed must be an integer at least 0, got -1"),
+        ({"pull_rounds": "many"}, "pull_rounds must be an integer at least 1, got 'many'"),
         ({"levels": "/nowhere/boxoban"}, "sokoban: levels path /nowhere/boxoban does not exist"),
         ({"levels": 3}, "levels must be a file or directory path, got 3"),
         ({"size": 3}, "bad parameters for environment 'sokoban'"),
