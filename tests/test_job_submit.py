@@ -36,7 +36,11 @@ def head_node():
     head = subprocess.Popen(
         [str(BIN / "ray"), "start", "--head", "--block", f"--port={gcs_port}", "--num-cpus=2",
          "--object-store-memory=100000000", "--include-dashboard=true", "--dashboard-host=127.0.0.1",
-         f"--dashboard-port={dashboard_port}", f"--temp-dir={temp_dir}"],
+         f"--dashboard-port={dashboard_port}", f"--temp-dir={temp_dir}",
+         # Free ports for everything else too: the session's own cluster already holds Ray's defaults.
+         f"--ray-client-server-port={_free_port()}", f"--dashboard-agent-listen-port={_free_port()}",
+         f"--dashboard-agent-grpc-port={_free_port()}", f"--runtime-env-agent-port={_free_port()}",
+         f"--metrics-export-port={_free_port()}"],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
     )
     address = f"http://127.0.0.1:{dashboard_port}"
@@ -67,7 +71,7 @@ def test_job_submit_runs_a_training(head_node, tmp_path, compile_cache_dir):
     command = [str(BIN / "ray"), "job", "submit", "--address", address, "--working-dir", str(REPO), "--",
                "pizero", "train", "--env", "tsp", "--preset", "tiny", "--iterations", "2", "--workers", "1",
                "--run-dir", str(run_dir), "--compile-cache", compile_cache_dir, "--no-progress"]
-    for _ in range(30):
+    for _ in range(60):
         submit = subprocess.run(command, env=env, capture_output=True, text=True, timeout=600)
         # The job server answers before the head's agent can take jobs; Ray says so and asks to retry.
         if "No available agent to submit job" not in submit.stdout + submit.stderr:
