@@ -87,9 +87,6 @@ class WorkerPool:
     def live_workers(self) -> int:
         return sum(w.ready for w in self._workers)
 
-    def worker_infos(self) -> list[dict]:
-        return [w.info for w in self._workers if w.ready]
-
     def kill_process(self, worker: _Worker) -> None:
         """SIGKILLs a worker's process, as a crash or a preemption would (same node), else kills the actor."""
         import os

@@ -43,7 +43,6 @@ class RolloutWorker:
             "device": str(jax.devices()[0]),
             "startup_s": time.time() - started,
         }
-        self._chunks_done = 0
 
     def ready(self) -> dict:
         return self._info
@@ -52,11 +51,7 @@ class RolloutWorker:
         jnp = self._jnp
         pairs = jnp.arange(first_pair, first_pair + self.config.chunk_size, dtype=jnp.int32)
         scores = self._evaluate(jnp.asarray(theta, jnp.float32), np.uint32(iteration_seed), pairs)
-        self._chunks_done += 1
         return np.asarray(scores, dtype=np.float32)
-
-    def info(self) -> dict:
-        return {**self._info, "chunks_done": self._chunks_done}
 
 
 def start_worker(
