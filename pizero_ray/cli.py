@@ -89,6 +89,8 @@ def _add_config_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--chunk-size", type=int, help="pairs per unit of work (divides the population)")
     parser.add_argument("--trials", type=int, help="episodes per member")
     parser.add_argument("--sigma", type=float)
+    parser.add_argument("--perturbation-rank", dest="perturbation_rank", type=int,
+                        help="0: full-rank noise (default); r > 0: rank-r noise per weight matrix, faster (EGGROLL)")
     parser.add_argument("--lr", dest="learning_rate", type=float)
     parser.add_argument("--weight-decay", type=float)
     parser.add_argument("--fitness-shaping", choices=("centered_ranks", "none"))
@@ -161,7 +163,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 _CONFIG_FIELDS = (
-    "population", "chunk_size", "trials", "sigma", "learning_rate", "weight_decay", "fitness_shaping", "seed",
+    "population", "chunk_size", "trials", "sigma", "perturbation_rank", "learning_rate", "weight_decay",
+    "fitness_shaping", "seed",
     "planner", "num_simulations", "chance_outcomes", "num_abstract_actions", "hidden_size", "latent_size",
     "memory_size", "decoder", "action_selection", "action_noise", "root_noise",
 )

@@ -48,6 +48,7 @@ class Config:
     population: int = 256  # antithetic pairs per iteration (2x members)
     trials: int = 1  # episodes per member, averaged
     sigma: float = 0.1
+    perturbation_rank: int = 0  # 0: full-rank noise; r > 0: rank-r noise per weight matrix (EGGROLL; opt-in)
     learning_rate: float = 0.01
     weight_decay: float = 0.0
     fitness_shaping: str = "centered_ranks"
@@ -84,6 +85,8 @@ class Config:
              f"unknown action selection {self.action_selection!r} (choose from {', '.join(ACTION_SELECTIONS)})")
         need(self.fitness_shaping in FITNESS_SHAPINGS,
              f"unknown fitness shaping {self.fitness_shaping!r} (choose from {', '.join(FITNESS_SHAPINGS)})")
+        need(isinstance(self.perturbation_rank, int) and self.perturbation_rank >= 0,
+             f"perturbation_rank must be a non-negative integer, got {self.perturbation_rank!r}")
         need(self.sigma > 0, f"sigma must be positive, got {self.sigma}")
         need(self.learning_rate > 0, f"learning_rate must be positive, got {self.learning_rate}")
         need(self.weight_decay >= 0, f"weight_decay must be non-negative, got {self.weight_decay}")

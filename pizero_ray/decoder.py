@@ -65,7 +65,8 @@ def action_scores(params: networks.Params, config: Config, ctx: jax.Array, actio
     """Logits over discrete actions: [B, A] from ctx [B, C] and features [B, A, F]."""
     if config.decoder == "flat":
         return networks.mlp(params, ctx)
-    hidden = networks.dense(params["features"], action_features) + (ctx @ params["context"]["w"])[..., None, :]
+    shared = networks.linear(ctx, params["context"]["w"])[..., None, :]
+    hidden = networks.dense(params["features"], action_features) + shared
     return networks.dense(params["out"], jnp.tanh(hidden))[..., 0]
 
 

@@ -76,7 +76,7 @@ def _initial_state(config: Config, env):
     from pizero_ray import es, rollout
 
     theta, layout = rollout.flat_params(config, env)
-    optimizer, update = es.make_update(config, layout.size)
+    optimizer, update = es.make_update(config, layout.perturbation)
     return np.asarray(theta), optimizer.init(jnp.asarray(theta)), layout, update
 
 

@@ -6,6 +6,12 @@ The driver forms the pseudo-gradient
     g = sum_i w_i z_i / (2 sigma n),   w_i = shaped(score_i+) - shaped(score_i-)
 chunk by chunk (never more than one chunk of noise in memory) in a fixed order,
 and takes an ascent step with Adam.
+
+With ``perturbation_rank`` r > 0 (opt-in, after EGGROLL, Sarkar et al. 2025)
+every weight matrix's noise is low rank, E = A B^T / sqrt(r) with A, B standard
+normal: each entry still has unit variance, but a pair draws (n + m) r numbers
+per n x m matrix instead of n m, and a member's forward pass is the shared
+product x W plus a cheap rank-r term. Biases keep full Gaussian noise.
 """
 
 from __future__ import annotations
@@ -29,6 +35,80 @@ def iteration_seed(base_seed: int, iteration: int) -> int:
 
 def iteration_key(seed) -> jax.Array:
     return jax.random.PRNGKey(jnp.asarray(seed, jnp.uint32))
+
+
+class Perturbation(NamedTuple):
+    """How one pair's noise vector maps onto the flat parameters."""
+
+    leaf_shapes: tuple[tuple[int, ...], ...]  # the parameter pytree's leaves, in ravel order
+    rank: int  # 0: full-rank Gaussian noise; r > 0: rank-r noise on every weight matrix
+
+    def is_low_rank(self, shape: tuple[int, ...]) -> bool:
+        return self.rank > 0 and len(shape) == 2
+
+    @property
+    def parameter_size(self) -> int:
+        return sum(int(np.prod(shape)) for shape in self.leaf_shapes)
+
+    @property
+    def noise_size(self) -> int:
+        """Standard normals drawn per pair."""
+        return sum((shape[0] + shape[1]) * self.rank if self.is_low_rank(shape) else int(np.prod(shape))
+                   for shape in self.leaf_shapes)
+
+
+def split_noise(noise: jax.Array, perturbation: Perturbation) -> list:
+    """Per leaf: the factors (A^T [r, n], B^T [r, m]) of a low-rank matrix, else the leaf's own noise.
+
+    ``noise`` is [..., noise_size]; leading dimensions are kept. The factors are
+    stored rank-major: a member's x A is then r contiguous dot products, which
+    XLA's CPU backend batches over members far better than a product with a
+    trailing dimension of size r.
+    """
+    lead = noise.shape[:-1]
+    parts, offset = [], 0
+    for shape in perturbation.leaf_shapes:
+        if perturbation.is_low_rank(shape):
+            (n, m), r = shape, perturbation.rank
+            a = noise[..., offset:offset + n * r].reshape(lead + (r, n))
+            b = noise[..., offset + n * r:offset + (n + m) * r].reshape(lead + (r, m))
+            parts.append((a, b))
+            offset += (n + m) * r
+        else:
+            size = int(np.prod(shape))
+            parts.append(noise[..., offset:offset + size].reshape(lead + shape))
+            offset += size
+    return parts
+
+
+def expand_noise(noise: jax.Array, perturbation: Perturbation) -> jax.Array:
+    """One pair's direction in parameter space, z [D]: A B^T / sqrt(r) for low-rank matrices."""
+    if perturbation.rank == 0:
+        return noise
+    scale = 1.0 / np.sqrt(perturbation.rank)
+    parts = [(part[0].T @ part[1] * scale).reshape(-1) if isinstance(part, tuple) else part.reshape(-1)
+             for part in split_noise(noise, perturbation)]
+    return jnp.concatenate(parts)
+
+
+def weighted_noise_sum(weights: jax.Array, noise: jax.Array, perturbation: Perturbation) -> jax.Array:
+    """sum_i w_i z_i [D] for a chunk: weights [C], noise [C, noise_size].
+
+    For low-rank matrices, sum_i w_i A_i B_i^T is one [n, C r] x [C r, m]
+    product instead of C outer products.
+    """
+    if perturbation.rank == 0:
+        return weights @ noise
+    scale = 1.0 / np.sqrt(perturbation.rank)
+    parts = []
+    for part in split_noise(noise, perturbation):
+        if isinstance(part, tuple):
+            a, b = part  # [C, r, n], [C, r, m]
+            weighted = (weights[:, None, None] * a).reshape(-1, a.shape[-1])
+            parts.append((weighted.T @ b.reshape(-1, b.shape[-1]) * scale).reshape(-1))
+        else:
+            parts.append((weights @ part.reshape(part.shape[0], -1)))
+    return jnp.concatenate(parts)
 
 
 def pair_noise(key: jax.Array, pair_index: jax.Array, size: int) -> jax.Array:
@@ -65,20 +145,26 @@ def pair_weights(scores: jax.Array, fitness_shaping: str, valid: jax.Array | Non
 
 
 def pseudo_gradient(
-    key: jax.Array, weights: jax.Array, sigma: float, size: int, chunk_size: int, num_pairs: jax.Array | None = None
+    key: jax.Array,
+    weights: jax.Array,
+    sigma: float,
+    perturbation: Perturbation,
+    chunk_size: int,
+    num_pairs: jax.Array | None = None,
 ) -> jax.Array:
     """sum_i w_i z_i / (2 sigma n), regenerating the noise one chunk at a time.
 
     ``num_pairs`` is n when some weights are zero because their pairs were dropped.
     """
+    size, noise_size = perturbation.parameter_size, perturbation.noise_size
     total_pairs = weights.shape[0]
     chunks = weights.reshape(total_pairs // chunk_size, chunk_size)
     starts = jnp.arange(0, total_pairs, chunk_size)
 
     def add_chunk(total, chunk):
         start, chunk_weights = chunk
-        noise = jax.vmap(pair_noise, in_axes=(None, 0, None))(key, start + jnp.arange(chunk_size), size)
-        return total + chunk_weights @ noise, None
+        noise = jax.vmap(pair_noise, in_axes=(None, 0, None))(key, start + jnp.arange(chunk_size), noise_size)
+        return total + weighted_noise_sum(chunk_weights, noise, perturbation), None
 
     total, _ = jax.lax.scan(add_chunk, jnp.zeros((size,), jnp.float32), (starts, chunks))
     return total / (2.0 * sigma * (total_pairs if num_pairs is None else num_pairs))
@@ -96,7 +182,7 @@ class UpdateStats(NamedTuple):
     parameter_norm: jax.Array
 
 
-def make_update(config: Config, size: int):
+def make_update(config: Config, perturbation: Perturbation):
     """jit(theta, opt_state, iteration_seed, scores [n, 2], valid [n]) -> (theta, opt_state, stats).
 
     ``valid`` marks the pairs whose scores came in (all of them unless a run
@@ -107,7 +193,7 @@ def make_update(config: Config, size: int):
     def update(theta, opt_state, seed, scores, valid):
         weights = pair_weights(scores, config.fitness_shaping, valid)
         num_pairs = jnp.maximum(jnp.sum(valid), 1).astype(jnp.float32)
-        g = pseudo_gradient(iteration_key(seed), weights, config.sigma, size, config.chunk_size, num_pairs)
+        g = pseudo_gradient(iteration_key(seed), weights, config.sigma, perturbation, config.chunk_size, num_pairs)
         updates, opt_state = optimizer.update(-g, opt_state, theta)
         new_theta = optax.apply_updates(theta, updates)
         stats = UpdateStats(jnp.linalg.norm(g), jnp.linalg.norm(updates), jnp.linalg.norm(new_theta))

@@ -7,6 +7,8 @@ leading batch dimensions.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 
@@ -20,8 +22,27 @@ def dense_init(key: jax.Array, n_in: int, n_out: int, scale: float = 1.0) -> Par
     return {"w": w, "b": jnp.zeros((n_out,), jnp.float32)}
 
 
+class LowRankPerturbed(NamedTuple):
+    """A weight matrix base + left.T @ right, never formed: one population member's view of a shared matrix."""
+
+    base: jax.Array  # [n, m], shared by every member
+    left: jax.Array  # [r, n], the member's noise factor (transposed) times its signed step
+    right: jax.Array  # [r, m]
+
+
+def linear(x: jax.Array, w) -> jax.Array:
+    """x @ w for a plain matrix or a low-rank-perturbed one.
+
+    Under vmap over members the shared x @ base becomes one large matrix
+    product for the whole population; only the rank-r term is per member.
+    """
+    if isinstance(w, LowRankPerturbed):
+        return x @ w.base + (x @ w.left.T) @ w.right
+    return x @ w
+
+
 def dense(params: Params, x: jax.Array) -> jax.Array:
-    return x @ params["w"] + params["b"]
+    return linear(x, params["w"]) + params["b"]
 
 
 def mlp_init(key: jax.Array, sizes: tuple[int, ...]) -> Params:

@@ -16,23 +16,42 @@ import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
 from envs.base import Environment
-from pizero_ray import agent, es
+from pizero_ray import agent, es, networks
 from pizero_ray.config import Config
 from pizero_ray.networks import Params
 
 
 class FlatParams(NamedTuple):
-    """How the agent's parameter pytree maps to the flat vector ES works on."""
+    """How the agent's parameter pytree maps to the flat vector ES works on, and how noise maps onto it."""
 
     size: int
     unravel: Callable[[jax.Array], Params]
+    perturbation: es.Perturbation
 
 
 def flat_params(config: Config, env: Environment) -> tuple[jax.Array, FlatParams]:
     """Initial parameters (from config.seed) as a flat float32 vector, and its layout."""
     params = agent.init_params(jax.random.PRNGKey(config.seed), config, env.spec)
     theta, unravel = ravel_pytree(params)
-    return theta.astype(jnp.float32), FlatParams(int(theta.size), unravel)
+    perturbation = es.Perturbation(tuple(leaf.shape for leaf in jax.tree.leaves(params)), config.perturbation_rank)
+    return theta.astype(jnp.float32), FlatParams(int(theta.size), unravel, perturbation)
+
+
+def perturbed_params(theta: jax.Array, noise: jax.Array, step: jax.Array, layout: FlatParams) -> Params:
+    """The member theta + step * z without forming z: low-rank matrices stay factored.
+
+    ``step`` is +sigma or -sigma. Only for low-rank perturbations; with full-rank
+    noise the member is simply ``layout.unravel(theta + step * noise)``.
+    """
+    perturbation = layout.perturbation
+    center = layout.unravel(theta)
+    leaves, treedef = jax.tree.flatten(center)
+    scale = step / jnp.sqrt(jnp.float32(perturbation.rank))
+    members = [
+        networks.LowRankPerturbed(leaf, scale * part[0], part[1]) if isinstance(part, tuple) else leaf + step * part
+        for leaf, part in zip(leaves, es.split_noise(noise, perturbation))
+    ]
+    return jax.tree.unflatten(treedef, members)
 
 
 def episode_reset_keys(key: jax.Array, num_episodes: int) -> jax.Array:
@@ -90,10 +109,17 @@ def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
     def member_score(theta: jax.Array, episode_key: jax.Array) -> jax.Array:
         return jnp.mean(run_episodes(layout.unravel(theta), config, env, episode_key, config.trials))
 
+    def low_rank_member_score(theta: jax.Array, noise: jax.Array, step: jax.Array, episode_key: jax.Array):
+        params = perturbed_params(theta, noise, step, layout)
+        return jnp.mean(run_episodes(params, config, env, episode_key, config.trials))
+
     def pair_scores(theta: jax.Array, key: jax.Array, pair_index: jax.Array) -> jax.Array:
-        noise = es.pair_noise(key, pair_index, layout.size)
-        members = jnp.stack([theta + config.sigma * noise, theta - config.sigma * noise])
+        noise = es.pair_noise(key, pair_index, layout.perturbation.noise_size)
         episode_key = es.pair_episode_key(key, pair_index)  # both halves see the same episodes
+        if layout.perturbation.rank > 0:
+            steps = jnp.array([config.sigma, -config.sigma], jnp.float32)
+            return jax.vmap(low_rank_member_score, in_axes=(None, None, 0, None))(theta, noise, steps, episode_key)
+        members = jnp.stack([theta + config.sigma * noise, theta - config.sigma * noise])
         return jax.vmap(member_score, in_axes=(0, None))(members, episode_key)
 
     def evaluate(theta: jax.Array, iteration_seed: jax.Array, pair_indices: jax.Array) -> jax.Array:

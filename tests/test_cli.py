@@ -23,6 +23,7 @@ def _run(argv, capsys):
         (["--population", "10", "--chunk-size", "4"], "population 10 is not a multiple of chunk_size 4"),
         (["--planner", "alphabeta"], "'alphabeta'"),
         (["--sigma", "0"], "sigma must be positive, got 0.0"),
+        (["--perturbation-rank", "-1"], "perturbation_rank must be a non-negative integer, got -1"),
         (["--env-arg", "num_cities=1"], "num_cities must be at least 3, got 1"),
         (["--env-arg", "cities=3"], "bad parameters for environment 'tsp'"),
         (["--preset", "huge"], "unknown preset 'huge'"),

@@ -43,13 +43,14 @@ def test_chunked_gradient_equals_the_direct_sum():
     n, size, sigma = 12, 50, 0.1
     weights = jnp.linspace(-1, 1, n)
     direct = sum(float(weights[i]) * np.asarray(es.pair_noise(key, i, size)) for i in range(n)) / (2 * sigma * n)
-    chunked = es.pseudo_gradient(key, weights, sigma, size, chunk_size=4)
+    chunked = es.pseudo_gradient(key, weights, sigma, es.Perturbation(((size,),), 0), chunk_size=4)
     np.testing.assert_allclose(np.asarray(chunked), direct, rtol=1e-5, atol=1e-6)
 
 
-def _quadratic_scores(theta, key, n, sigma, target):
-    size = theta.shape[0]
-    noise = np.stack([np.asarray(es.pair_noise(key, i, size)) for i in range(n)])
+def _quadratic_scores(theta, key, n, sigma, target, perturbation=None):
+    perturbation = perturbation or es.Perturbation(((theta.shape[0],),), 0)
+    noise = np.stack([np.asarray(es.expand_noise(es.pair_noise(key, i, perturbation.noise_size), perturbation))
+                      for i in range(n)])
     score = lambda x: -np.sum((x - target) ** 2, axis=-1)
     return np.stack([score(theta + sigma * noise), score(theta - sigma * noise)], axis=1)
 
@@ -60,27 +61,59 @@ def test_antithetic_gradient_of_a_quadratic_points_uphill():
     target = np.linspace(-1, 1, size).astype(np.float32)
     key = es.iteration_key(3)
     scores = _quadratic_scores(theta, key, n, sigma, target)
-    g = np.asarray(es.pseudo_gradient(key, es.pair_weights(jnp.asarray(scores), "none"), sigma, size, 20))
+    weights = es.pair_weights(jnp.asarray(scores), "none")
+    g = np.asarray(es.pseudo_gradient(key, weights, sigma, es.Perturbation(((size,),), 0), 20))
     true_gradient = 2 * (target - theta)
     cosine = g @ true_gradient / (np.linalg.norm(g) * np.linalg.norm(true_gradient))
     assert cosine > 0.7
 
 
-@pytest.mark.parametrize("shaping", ["none", "centered_ranks"])
-def test_adam_ascent_steps_climb_the_quadratic(shaping):
-    size = 10
-    config = build_config("tiny", population=64, chunk_size=16, sigma=0.05, learning_rate=0.05, fitness_shaping=shaping)
-    optimizer, update = es.make_update(config, size)
+@pytest.mark.parametrize("shaping, rank", [("none", 0), ("centered_ranks", 0), ("centered_ranks", 2)])
+def test_adam_ascent_steps_climb_the_quadratic(shaping, rank):
+    shapes = ((4, 6), (6,)) if rank else ((10,),)
+    perturbation = es.Perturbation(shapes, rank)
+    size = perturbation.parameter_size
+    config = build_config("tiny", population=64, chunk_size=16, sigma=0.05, learning_rate=0.05, fitness_shaping=shaping,
+                          perturbation_rank=rank)
+    optimizer, update = es.make_update(config, perturbation)
     theta = jnp.zeros(size)
     state = optimizer.init(theta)
     target = np.linspace(-1, 1, size).astype(np.float32)
     start = np.sum(target**2)
     for iteration in range(30):
         seed = es.iteration_seed(0, iteration)
-        scores = _quadratic_scores(np.asarray(theta), es.iteration_key(seed), 64, 0.05, target)
+        scores = _quadratic_scores(np.asarray(theta), es.iteration_key(seed), 64, 0.05, target, perturbation)
         theta, state, _ = update(theta, state, np.uint32(seed), jnp.asarray(scores, jnp.float32), jnp.ones(64, bool))
     assert np.sum((np.asarray(theta) - target) ** 2) < 0.5 * start
     assert isinstance(state[1][0], optax.ScaleByAdamState) and int(state[1][0].count) == 30
+
+
+def test_low_rank_noise_sizes_and_structure():
+    perturbation = es.Perturbation(((12, 9), (9,), (9, 1)), 2)
+    assert perturbation.parameter_size == 12 * 9 + 9 + 9
+    assert perturbation.noise_size == (12 + 9) * 2 + 9 + (9 + 1) * 2
+    key = es.iteration_key(5)
+    directions = np.stack([np.asarray(es.expand_noise(es.pair_noise(key, i, perturbation.noise_size), perturbation))
+                           for i in range(400)])
+    assert directions.shape == (400, perturbation.parameter_size)
+    # each matrix's noise has rank r; its entries (and the biases') keep unit variance, as full-rank noise
+    assert np.linalg.matrix_rank(directions[0, :108].reshape(12, 9)) == 2
+    assert 0.85 < directions.var() < 1.15
+    assert abs(directions.mean()) < 0.05
+    np.testing.assert_array_equal(es.expand_noise(jnp.arange(5.0), es.Perturbation(((5,),), 0)), jnp.arange(5.0))
+
+
+def test_low_rank_gradient_equals_the_direct_sum_of_expanded_noise():
+    perturbation = es.Perturbation(((7, 5), (5,), (5, 3)), 3)
+    key = es.iteration_key(11)
+    n, sigma = 12, 0.1
+    weights = jnp.linspace(-1, 1, n)
+    noise = [es.pair_noise(key, i, perturbation.noise_size) for i in range(n)]
+    direct = sum(float(weights[i]) * np.asarray(es.expand_noise(noise[i], perturbation)) for i in range(n))
+    np.testing.assert_allclose(es.weighted_noise_sum(weights, jnp.stack(noise), perturbation), direct,
+                               rtol=1e-5, atol=1e-5)
+    chunked = es.pseudo_gradient(key, weights, sigma, perturbation, chunk_size=4)
+    np.testing.assert_allclose(np.asarray(chunked), direct / (2 * sigma * n), rtol=1e-5, atol=1e-5)
 
 
 def test_dropped_pairs_take_no_rank_and_no_weight():
