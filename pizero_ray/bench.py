@@ -1,10 +1,14 @@
 """`pizero bench`: how fast the population rollout, the Ray trainer and the driver are.
 
 Measures, at the paper's agent (abstract state 64, hidden 64, k = 4, 10
-simulations) on TSP10:
+simulations) on TSP10, in two modes: ``exact`` (full-rank Gaussian noise, the
+default) and ``low_rank`` (the opt-in ``perturbation_rank`` 1, EGGROLL-style):
   - the jitted population rollout alone, in this process, chunk by chunk as a
     worker runs it: agent-steps and MCTS simulations per second (median of
     repeats after warm-up), compile time, peak memory;
+  - a straightforward rollout for comparison: the same agent through
+    ``mctx.muzero_policy`` (which samples Dirichlet noise even at weight ~0),
+    batch 1 per member, full-rank noise;
   - the same work through the Ray trainer with 1 and 2 workers: iteration time,
     and its ratio to the in-process rollout (distributed efficiency);
   - the driver's update (noise regeneration + gradient + Adam) as a share of
@@ -31,32 +35,41 @@ import numpy as np
 
 from pizero_ray.config import Config, build_config
 
+LOW_RANK = 1  # the perturbation rank the benchmark's low-rank mode uses
+
 
 @dataclass(frozen=True)
 class BenchPlan:
     population: int
-    chunk_size: int
+    chunk_size: int  # exact mode: past ~40 pairs a chunk's full-rank members stop fitting the caches
+    low_rank_chunk_size: int  # low-rank mode: bigger chunks make bigger shared matrix products
     repeats: int
     trainer_iterations: int
     simulation_sweep: tuple[int, ...]
     population_sweep: tuple[int, ...]
+    sweep_modes: tuple[str, ...]  # which modes the sweeps cover
+    low_rank_trainer_workers: tuple[int, ...]  # the exact mode always runs 1 and 2 workers
 
 
-FULL = BenchPlan(population=1000, chunk_size=40, repeats=5, trainer_iterations=6,
-                 simulation_sweep=(1, 10, 50), population_sweep=(64, 256, 1000))
-QUICK = BenchPlan(population=64, chunk_size=16, repeats=3, trainer_iterations=3,
-                  simulation_sweep=(1, 10), population_sweep=(16, 64))
+FULL = BenchPlan(population=1000, chunk_size=40, low_rank_chunk_size=100, repeats=5, trainer_iterations=6,
+                 simulation_sweep=(1, 10, 50), population_sweep=(64, 256, 1000), sweep_modes=("exact", "low_rank"),
+                 low_rank_trainer_workers=(1, 2))
+QUICK = BenchPlan(population=64, chunk_size=16, low_rank_chunk_size=32, repeats=3, trainer_iterations=3,
+                  simulation_sweep=(1, 10), population_sweep=(64,), sweep_modes=("exact",),
+                  low_rank_trainer_workers=())
 
 
-def bench_config(population: int, chunk_size: int, simulations: int = 10) -> Config:
+def bench_config(population: int, chunk_size: int, simulations: int = 10, perturbation_rank: int = 0,
+                 root_noise: float = 0.0) -> Config:
     """The paper's agent on TSP10 (one trial per member, as the trainer's default).
 
     The chunk is the largest divisor of the population not above ``chunk_size``.
     """
     chunk = max(c for c in range(1, min(chunk_size, population) + 1) if population % c == 0)
     return build_config(
-        "default", env="tsp", population=population, chunk_size=chunk,
+        "default", env="tsp", population=population, chunk_size=chunk, perturbation_rank=perturbation_rank,
         hidden_size=64, latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=simulations,
+        root_noise=root_noise,
     )
 
 
@@ -112,7 +125,7 @@ def driver_update(config: Config, repeats: int) -> float:
 
     env = envs.make(config.env)
     theta, layout = rollout_lib.flat_params(config, env)
-    optimizer, update = es.make_update(config, layout.size)
+    optimizer, update = es.make_update(config, layout.perturbation)
     state = optimizer.init(theta)
     scores = jnp.asarray(np.random.default_rng(0).normal(size=(config.population, 2)), jnp.float32)
     valid = jnp.ones((config.population,), bool)
@@ -146,6 +159,27 @@ def trainer(config: Config, workers: int, iterations: int, cache_dir: str) -> di
     }
 
 
+def worker_memory(config: Config, cache_dir: str) -> float:
+    """Peak resident memory (MB) of one Ray worker actor after evaluating a whole iteration."""
+    import ray
+
+    import envs
+    from pizero_ray import es, workers
+    from pizero_ray import rollout as rollout_lib
+
+    theta, _ = rollout_lib.flat_params(config, envs.make(config.env, **config.env_kwargs()))
+    actor = workers.start_worker(config.to_json(), 1.0, 0.0, cache_dir)
+    try:
+        ray.get(actor.ready.remote(), timeout=600)
+        theta_ref = ray.put(np.asarray(theta))
+        seed = es.iteration_seed(config.seed, 1)
+        ray.get([actor.evaluate_chunk.remote(theta_ref, seed, start)
+                 for start in range(0, config.population, config.chunk_size)], timeout=600)
+        return ray.get(actor.peak_rss_mb.remote(), timeout=60)
+    finally:
+        ray.kill(actor)
+
+
 def traffic(config: Config, parameters: int) -> dict:
     """Bytes per iteration: parameters once per node out, 8 bytes per pair (plus framing) back."""
     chunk_result = np.zeros((config.chunk_size, 2), np.float32)
@@ -163,55 +197,90 @@ def run(plan: BenchPlan, progress=print) -> dict:
     from pizero_ray import ray_setup
 
     ray_setup.init(None)  # before JAX starts its threads
-    config = bench_config(plan.population, plan.chunk_size)
-    progress(f"rollout: population {plan.population}, 10 simulations")
-    main = rollout(config, plan.repeats)
-    progress("driver update")
-    update_s = driver_update(config, plan.repeats)
-    sweeps = {"simulations": [], "population": []}
-    for sims in plan.simulation_sweep:
-        if sims == 10:
-            sweeps["simulations"].append(main)
+    modes = {"exact": (0, plan.chunk_size), "low_rank": (LOW_RANK, plan.low_rank_chunk_size)}
+    configs = {mode: bench_config(plan.population, chunk, perturbation_rank=rank)
+               for mode, (rank, chunk) in modes.items()}
+    main, update_s, sweeps = {}, {}, {"simulations": [], "population": []}
+    for mode, (rank, chunk) in modes.items():
+        progress(f"rollout ({mode}): population {plan.population}, 10 simulations")
+        main[mode] = rollout(configs[mode], plan.repeats)
+        progress(f"driver update ({mode})")
+        update_s[mode] = driver_update(configs[mode], plan.repeats)
+        if mode not in plan.sweep_modes:
             continue
-        progress(f"sweep: {sims} simulations")
-        sweeps["simulations"].append(rollout(bench_config(plan.population, plan.chunk_size, sims), plan.repeats))
-    for population in plan.population_sweep:
-        if population == plan.population:
-            sweeps["population"].append(main)
-            continue
-        progress(f"sweep: population {population}")
-        sweeps["population"].append(rollout(bench_config(population, plan.chunk_size), plan.repeats))
+        for sims in plan.simulation_sweep:
+            if sims != 10:
+                progress(f"sweep ({mode}): {sims} simulations")
+            result = main[mode] if sims == 10 else rollout(
+                bench_config(plan.population, chunk, sims, perturbation_rank=rank), plan.repeats)
+            sweeps["simulations"].append({"mode": mode, **result})
+        for population in plan.population_sweep:
+            if population != plan.population:
+                progress(f"sweep ({mode}): population {population}")
+            result = main[mode] if population == plan.population else rollout(
+                bench_config(population, chunk, perturbation_rank=rank), plan.repeats)
+            sweeps["population"].append({"mode": mode, **result})
+    progress("straightforward rollout: mctx.muzero_policy, batch 1 per member, full-rank noise")
+    # A Dirichlet weight of 1e-9 routes the search through mctx.muzero_policy,
+    # noise sampling included: the rollout as it is first written.
+    straightforward = rollout(bench_config(plan.population, plan.chunk_size, root_noise=1e-9), plan.repeats)
     trainers = {}
     with tempfile.TemporaryDirectory(prefix="pizero-bench-cache-") as cache:
         for workers in (1, 2):
-            progress(f"Ray trainer: {workers} worker(s)" + (" (cold compile cache)" if workers == 1 else ""))
-            trainers[workers] = trainer(config, workers, plan.trainer_iterations, cache)
-        progress("Ray trainer: a new worker with the compile cache warm")
-        cached = trainer(config, 1, 2, cache)
+            progress(f"Ray trainer (exact): {workers} worker(s)" + (" (cold compile cache)" if workers == 1 else ""))
+            trainers["exact", workers] = trainer(configs["exact"], workers, plan.trainer_iterations, cache)
+        progress("Ray trainer (exact): a new worker with the compile cache warm")
+        cached = trainer(configs["exact"], 1, 2, cache)
+        for workers in plan.low_rank_trainer_workers:
+            progress(f"Ray trainer (low_rank): {workers} worker(s)")
+            trainers["low_rank", workers] = trainer(configs["low_rank"], workers, plan.trainer_iterations, cache)
+        progress("peak memory of a worker")
+        worker_rss = {mode: worker_memory(configs[mode], cache) for mode in modes
+                      if mode == "exact" or plan.low_rank_trainer_workers}
     result = {
         "device": str(jax.devices()[0]),
         "device_kind": jax.devices()[0].device_kind,
         "population": plan.population,
-        "parameters": main["parameters"],
-        "rollout_agent_steps_per_s": main["agent_steps_per_s"],
-        "rollout_simulations_per_s": main["simulations_per_s"],
-        "rollout_iteration_s": main["iteration_s"],
-        "compile_s": main["compile_s"],
-        "peak_rss_mb": _peak_rss_mb(),
-        "trainer_iteration_s_1_worker": trainers[1]["iteration_s"],
-        "trainer_iteration_s_2_workers": trainers[2]["iteration_s"],
-        "distributed_efficiency": main["iteration_s"] / trainers[2]["iteration_s"],
-        "distributed_efficiency_1_worker": main["iteration_s"] / trainers[1]["iteration_s"],
-        "driver_update_s": update_s,
-        "driver_update_share": trainers[2]["update_s"] / trainers[2]["iteration_s"],
-        "worker_first_result_s_cold": trainers[1]["worker_first_result_s"],
-        "worker_first_result_s_cached": cached["worker_first_result_s"],
-        **traffic(config, main["parameters"]),
-        "simulation_sweep": [{k: r[k] for k in ("simulations", "agent_steps_per_s", "iteration_s")}
-                             for r in sweeps["simulations"]],
-        "population_sweep": [{k: r[k] for k in ("population", "agent_steps_per_s", "iteration_s")}
-                             for r in sweeps["population"]],
+        "parameters": main["exact"]["parameters"],
+        "low_rank_perturbation_rank": LOW_RANK,
+        "low_rank_chunk_size": configs["low_rank"].chunk_size,
+        "straightforward_agent_steps_per_s": straightforward["agent_steps_per_s"],
     }
+    for mode in modes:
+        suffix = "" if mode == "exact" else "_low_rank"
+        result.update({
+            f"rollout_agent_steps_per_s{suffix}": main[mode]["agent_steps_per_s"],
+            f"rollout_simulations_per_s{suffix}": main[mode]["simulations_per_s"],
+            f"rollout_iteration_s{suffix}": main[mode]["iteration_s"],
+            f"speedup_vs_straightforward{suffix}": main[mode]["agent_steps_per_s"]
+            / straightforward["agent_steps_per_s"],
+            f"compile_s{suffix}": main[mode]["compile_s"],
+            f"driver_update_s{suffix}": update_s[mode],
+        })
+        for workers in (1, 2):  # the Ray trainer's figures, where this plan ran them
+            if (mode, workers) not in trainers:
+                continue
+            run = trainers[mode, workers]
+            label = "1_worker" if workers == 1 else "2_workers"
+            result[f"trainer_iteration_s_{label}{suffix}"] = run["iteration_s"]
+            efficiency = main[mode]["iteration_s"] / run["iteration_s"]
+            if workers == 2:
+                result[f"distributed_efficiency{suffix}"] = efficiency
+                result[f"driver_update_share{suffix}"] = run["update_s"] / run["iteration_s"]
+            else:
+                result[f"distributed_efficiency_1_worker{suffix}"] = efficiency
+    result.update({
+        "peak_rss_mb": _peak_rss_mb(),
+        "worker_peak_rss_mb": worker_rss["exact"],
+        **({"worker_peak_rss_mb_low_rank": worker_rss["low_rank"]} if "low_rank" in worker_rss else {}),
+        "worker_first_result_s_cold": trainers["exact", 1]["worker_first_result_s"],
+        "worker_first_result_s_cached": cached["worker_first_result_s"],
+        **traffic(configs["exact"], main["exact"]["parameters"]),
+        "simulation_sweep": [{k: r[k] for k in ("mode", "simulations", "agent_steps_per_s", "iteration_s")}
+                             for r in sweeps["simulations"]],
+        "population_sweep": [{k: r[k] for k in ("mode", "population", "agent_steps_per_s", "iteration_s")}
+                             for r in sweeps["population"]],
+    })
     return result
 
 

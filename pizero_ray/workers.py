@@ -9,6 +9,7 @@ driver's per-chunk timeout need not allow for compiles.
 from __future__ import annotations
 
 import os
+import resource
 import time
 
 import numpy as np
@@ -46,6 +47,10 @@ class RolloutWorker:
 
     def ready(self) -> dict:
         return self._info
+
+    def peak_rss_mb(self) -> float:
+        """This worker process's peak resident memory (for `pizero bench`)."""
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
     def evaluate_chunk(self, theta: np.ndarray, iteration_seed: int, first_pair: int) -> np.ndarray:
         jnp = self._jnp

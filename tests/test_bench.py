@@ -34,3 +34,14 @@ def test_bench_chunks_divide_any_population():
     assert bench.bench_config(256, 40).chunk_size == 32
     assert bench.bench_config(64, 40).chunk_size == 32
     assert bench.bench_config(7, 40).chunk_size == 7
+
+
+def test_bench_modes_differ_only_in_the_perturbation_and_the_straightforward_search():
+    exact = bench.bench_config(1000, 40)
+    low_rank = bench.bench_config(1000, 100, perturbation_rank=bench.LOW_RANK)
+    straightforward = bench.bench_config(1000, 40, root_noise=1e-9)
+    assert (exact.perturbation_rank, low_rank.perturbation_rank) == (0, bench.LOW_RANK)
+    assert low_rank.chunk_size == 100 and straightforward.root_noise > 0
+    assert {k: v for k, v in vars(exact).items() if k not in ("perturbation_rank", "chunk_size", "root_noise")} == {
+        k: v for k, v in vars(low_rank).items() if k not in ("perturbation_rank", "chunk_size", "root_noise")}
+    assert bench.QUICK.low_rank_trainer_workers == () and set(bench.FULL.sweep_modes) == {"exact", "low_rank"}
