@@ -51,7 +51,7 @@ class BenchPlan:
     low_rank_trainer_workers: tuple[int, ...]  # the exact mode always runs 1 and 2 workers
 
 
-FULL = BenchPlan(population=1000, chunk_size=40, low_rank_chunk_size=100, repeats=5, trainer_iterations=6,
+FULL = BenchPlan(population=1000, chunk_size=40, low_rank_chunk_size=100, repeats=7, trainer_iterations=6,
                  simulation_sweep=(1, 10, 50), population_sweep=(64, 256, 1000), sweep_modes=("exact", "low_rank"),
                  low_rank_trainer_workers=(1, 2))
 QUICK = BenchPlan(population=64, chunk_size=16, low_rank_chunk_size=32, repeats=3, trainer_iterations=3,
@@ -77,8 +77,17 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def rollout(config: Config, repeats: int) -> dict:
-    """The population rollout alone: every chunk of one iteration, in this process."""
+@dataclass(frozen=True)
+class CompiledRollout:
+    config: Config
+    one_iteration: object  # (seed) -> seconds for every chunk of one iteration
+    compile_s: float
+    parameters: int
+    agent_steps: int  # per iteration
+
+
+def compile_rollout(config: Config) -> CompiledRollout:
+    """The population rollout as a worker runs it, compiled for this process."""
     import jax
     import jax.numpy as jnp
 
@@ -100,18 +109,39 @@ def rollout(config: Config, repeats: int) -> dict:
         return time.perf_counter() - t0
 
     one_iteration(0)  # warm-up
-    times = [one_iteration(seed) for seed in range(1, repeats + 1)]
-    seconds = statistics.median(times)
     agent_steps = config.population * 2 * config.trials * env.spec.horizon
-    return {
-        "population": config.population,
-        "simulations": config.num_simulations,
-        "iteration_s": seconds,
-        "agent_steps_per_s": agent_steps / seconds,
-        "simulations_per_s": agent_steps * config.num_simulations / seconds,
-        "compile_s": compile_s,
-        "parameters": layout.size,
-    }
+    return CompiledRollout(config, one_iteration, compile_s, layout.size, agent_steps)
+
+
+def rollouts(configs: dict[str, Config], repeats: int) -> dict[str, dict]:
+    """The population rollout alone, in this process: median iteration of each config.
+
+    Repeats of the configs are interleaved, so that a slow spell of a shared
+    machine hits all of them alike and their ratios stay meaningful.
+    """
+    compiled = {name: compile_rollout(config) for name, config in configs.items()}
+    times: dict[str, list[float]] = {name: [] for name in configs}
+    for seed in range(1, repeats + 1):
+        for name, run in compiled.items():
+            times[name].append(run.one_iteration(seed))
+    results = {}
+    for name, run in compiled.items():
+        seconds = statistics.median(times[name])
+        results[name] = {
+            "population": run.config.population,
+            "simulations": run.config.num_simulations,
+            "iteration_s": seconds,
+            "agent_steps_per_s": run.agent_steps / seconds,
+            "simulations_per_s": run.agent_steps * run.config.num_simulations / seconds,
+            "compile_s": run.compile_s,
+            "parameters": run.parameters,
+        }
+    return results
+
+
+def rollout(config: Config, repeats: int) -> dict:
+    """The population rollout of one config alone (see ``rollouts``)."""
+    return rollouts({"rollout": config}, repeats)["rollout"]
 
 
 def driver_update(config: Config, repeats: int) -> float:
@@ -200,10 +230,15 @@ def run(plan: BenchPlan, progress=print) -> dict:
     modes = {"exact": (0, plan.chunk_size), "low_rank": (LOW_RANK, plan.low_rank_chunk_size)}
     configs = {mode: bench_config(plan.population, chunk, perturbation_rank=rank)
                for mode, (rank, chunk) in modes.items()}
-    main, update_s, sweeps = {}, {}, {"simulations": [], "population": []}
+    progress(f"rollouts (exact, low_rank, straightforward; interleaved): population {plan.population}, "
+             "10 simulations")
+    # A Dirichlet weight of 1e-9 routes the search through mctx.muzero_policy,
+    # noise sampling included: the rollout as it is first written.
+    straightforward_config = bench_config(plan.population, plan.chunk_size, root_noise=1e-9)
+    main = rollouts({**configs, "straightforward": straightforward_config}, plan.repeats)
+    straightforward = main.pop("straightforward")
+    update_s, sweeps = {}, {"simulations": [], "population": []}
     for mode, (rank, chunk) in modes.items():
-        progress(f"rollout ({mode}): population {plan.population}, 10 simulations")
-        main[mode] = rollout(configs[mode], plan.repeats)
         progress(f"driver update ({mode})")
         update_s[mode] = driver_update(configs[mode], plan.repeats)
         if mode not in plan.sweep_modes:
@@ -220,10 +255,6 @@ def run(plan: BenchPlan, progress=print) -> dict:
             result = main[mode] if population == plan.population else rollout(
                 bench_config(population, chunk, perturbation_rank=rank), plan.repeats)
             sweeps["population"].append({"mode": mode, **result})
-    progress("straightforward rollout: mctx.muzero_policy, batch 1 per member, full-rank noise")
-    # A Dirichlet weight of 1e-9 routes the search through mctx.muzero_policy,
-    # noise sampling included: the rollout as it is first written.
-    straightforward = rollout(bench_config(plan.population, plan.chunk_size, root_noise=1e-9), plan.repeats)
     trainers = {}
     with tempfile.TemporaryDirectory(prefix="pizero-bench-cache-") as cache:
         for workers in (1, 2):

@@ -111,3 +111,32 @@ def test_chance_nodes_need_the_muzero_planner():
 
     with pytest.raises(ConfigError, match="chance nodes need the muzero planner"):
         build_config("tiny", chance_outcomes=3, planner="gumbel")
+
+
+def test_muzero_search_without_root_noise_is_mctx_muzero_policy_exactly(tsp_env):
+    # planner.plan skips muzero_policy's Dirichlet sampling when its weight is 0
+    # (a speed-up); the tree must be the one muzero_policy builds.
+    import mctx
+
+    config = build_config("tiny", num_simulations=8, num_abstract_actions=3)
+    params = agent.init_params(jax.random.PRNGKey(0), config, tsp_env.spec)
+    latent = jax.random.normal(jax.random.PRNGKey(1), (16, config.latent_size))
+    key = jax.random.PRNGKey(4)
+    ours = jax.jit(lambda p, z: planner.plan(p, config, z, key))(params, latent)
+
+    def recurrent_fn(p, rng, action, embedding):
+        reward, next_latent = planner.dynamics(p, embedding, action, config.num_abstract_actions)
+        value, logits = planner.predict(p, next_latent)
+        discount = jnp.full_like(reward, config.abstract_discount)
+        return mctx.RecurrentFnOutput(reward=reward, discount=discount, prior_logits=logits, value=value), next_latent
+
+    def reference(p, z):
+        value, logits = planner.predict(p, z)
+        root = mctx.RootFnOutput(prior_logits=logits, value=value, embedding=z)
+        return mctx.muzero_policy(p, key, root, recurrent_fn, config.num_simulations, dirichlet_fraction=0.0,
+                                  pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base)
+
+    theirs = jax.jit(reference)(params, latent)
+    np.testing.assert_array_equal(np.asarray(ours.visit_probs), np.asarray(theirs.action_weights))
+    np.testing.assert_array_equal(np.asarray(ours.root_value), np.asarray(theirs.search_tree.summary().value))
+    assert len({tuple(row) for row in np.asarray(ours.visit_probs).round(3)}) > 1  # the searches differ per state
