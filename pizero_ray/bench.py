@@ -48,19 +48,20 @@ class BenchPlan:
     simulation_sweep: tuple[int, ...]
     population_sweep: tuple[int, ...]
     sweep_modes: tuple[str, ...]  # which modes the sweeps cover
+    planner_sweep: tuple[str, ...]  # exact mode, population as above
     low_rank_trainer_workers: tuple[int, ...]  # the exact mode always runs 1 and 2 workers
 
 
 FULL = BenchPlan(population=1000, chunk_size=40, low_rank_chunk_size=100, repeats=7, trainer_iterations=6,
                  simulation_sweep=(1, 10, 50), population_sweep=(64, 256, 1000), sweep_modes=("exact", "low_rank"),
-                 low_rank_trainer_workers=(1, 2))
+                 planner_sweep=("muzero", "gumbel", "none"), low_rank_trainer_workers=(1, 2))
 QUICK = BenchPlan(population=64, chunk_size=16, low_rank_chunk_size=32, repeats=3, trainer_iterations=3,
                   simulation_sweep=(1, 10), population_sweep=(64,), sweep_modes=("exact",),
-                  low_rank_trainer_workers=())
+                  planner_sweep=(), low_rank_trainer_workers=())
 
 
 def bench_config(population: int, chunk_size: int, simulations: int = 10, perturbation_rank: int = 0,
-                 root_noise: float = 0.0) -> Config:
+                 root_noise: float = 0.0, planner: str = "muzero") -> Config:
     """The paper's agent on TSP10 (one trial per member, as the trainer's default).
 
     The chunk is the largest divisor of the population not above ``chunk_size``.
@@ -69,7 +70,7 @@ def bench_config(population: int, chunk_size: int, simulations: int = 10, pertur
     return build_config(
         "default", env="tsp", population=population, chunk_size=chunk, perturbation_rank=perturbation_rank,
         hidden_size=64, latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=simulations,
-        root_noise=root_noise,
+        root_noise=root_noise, planner=planner,
     )
 
 
@@ -142,6 +143,15 @@ def rollouts(configs: dict[str, Config], repeats: int) -> dict[str, dict]:
 def rollout(config: Config, repeats: int) -> dict:
     """The population rollout of one config alone (see ``rollouts``)."""
     return rollouts({"rollout": config}, repeats)["rollout"]
+
+
+def planner_sweep(plan: BenchPlan, progress=print) -> list[dict]:
+    """The exact-mode rollout with each planner (mctx MuZero, mctx Gumbel MuZero, none), interleaved."""
+    progress(f"planner sweep (exact, interleaved): {', '.join(plan.planner_sweep)}")
+    configs = {planner: bench_config(plan.population, plan.chunk_size, planner=planner)
+               for planner in plan.planner_sweep}
+    return [{"planner": planner, "agent_steps_per_s": r["agent_steps_per_s"], "iteration_s": r["iteration_s"]}
+            for planner, r in rollouts(configs, plan.repeats).items()]
 
 
 def driver_update(config: Config, repeats: int) -> float:
@@ -255,6 +265,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
             result = main[mode] if population == plan.population else rollout(
                 bench_config(population, chunk, perturbation_rank=rank), plan.repeats)
             sweeps["population"].append({"mode": mode, **result})
+    planners = planner_sweep(plan, progress) if plan.planner_sweep else []
     trainers = {}
     with tempfile.TemporaryDirectory(prefix="pizero-bench-cache-") as cache:
         for workers in (1, 2):
@@ -311,6 +322,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
                              for r in sweeps["simulations"]],
         "population_sweep": [{k: r[k] for k in ("mode", "population", "agent_steps_per_s", "iteration_s")}
                              for r in sweeps["population"]],
+        "planner_sweep": planners,
     })
     return result
 
@@ -319,7 +331,7 @@ def table(result: dict) -> str:
     lines = [f"pizero bench on {result['device']} ({result['device_kind']}), TSP10, population "
              f"{result['population']} pairs, {result['parameters']} parameters"]
     for key, value in result.items():
-        if key in ("simulation_sweep", "population_sweep"):
+        if key.endswith("_sweep"):
             for row in value:
                 label = ", ".join(f"{k} {v:,.3f}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items())
                 lines.append(f"  {key}: {label}")
