@@ -2,7 +2,9 @@
 
 Parameters are dicts of float32 arrays so the whole agent is one pytree that
 ES can flatten into a single vector. Every apply function accepts arbitrary
-leading batch dimensions.
+leading batch dimensions. With low-rank ES noise, a population member's weight
+matrices are ``LowRankPerturbed`` (shared matrix plus its own rank-r factors)
+and every layer goes through ``linear``, which never forms them.
 """
 
 from __future__ import annotations
