@@ -7,6 +7,7 @@ line on stderr, exit code 2, nothing written), then call into the driver.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import signal
@@ -41,6 +42,14 @@ def _int_at_least(low: int, description: str):
 
 _positive_int = _int_at_least(1, "positive")
 _non_negative_int = _int_at_least(0, "non-negative")
+
+
+def _positive_int_list(text: str) -> tuple[int, ...]:
+    """An argparse type: comma-separated positive integers, e.g. 1,10,50."""
+    items = text.split(",")
+    if not all(item.strip().isdigit() and int(item) > 0 for item in items):
+        raise argparse.ArgumentTypeError(f"expected comma-separated positive integers, got {text!r}")
+    return tuple(int(item) for item in items)
 
 
 def _env_arg(text: str) -> tuple[str, object]:
@@ -153,6 +162,10 @@ def _parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measure rollout, trainer and driver speed (TSP10, paper agent)")
     bench.add_argument("--quick", action="store_true", help="a reduced version (population 64), about a minute")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
+    bench.add_argument("--simulations", type=_positive_int_list, metavar="K1,K2,...",
+                       help="search budgets to sweep (default 1,10,50; --quick 1,10)")
+    bench.add_argument("--populations", type=_positive_int_list, metavar="P1,P2,...",
+                       help="populations (pairs) to sweep (default 64,256,1000; --quick 64)")
 
     plot = sub.add_parser("plot", help="learning curves of one or more runs as a PNG")
     plot.add_argument("run_dirs", nargs="+")
@@ -300,8 +313,6 @@ def _cmd_train(args) -> int:
 
 def _cmd_chaos(args) -> int:
     """The determinism guarantee, shown: a clean run and one whose workers are SIGKILLed mid-iteration."""
-    import dataclasses
-
     import numpy as np
 
     from pizero_ray import driver
@@ -392,6 +403,10 @@ def _cmd_bench(args) -> int:
     from pizero_ray import bench
 
     plan = bench.QUICK if args.quick else bench.FULL
+    if args.simulations:
+        plan = dataclasses.replace(plan, simulation_sweep=args.simulations)
+    if args.populations:
+        plan = dataclasses.replace(plan, population_sweep=args.populations)
     result = bench.run(plan, progress=lambda text: print(f"pizero bench: {text}", file=sys.stderr, flush=True))
     print(bench.to_json(result) if args.json else bench.table(result))
     return 0

@@ -69,3 +69,10 @@ def test_train_refuses_to_overwrite_a_run(tmp_path, capsys):
     code, err = _run(["train", "--run-dir", str(tmp_path), "--preset", "tiny"], capsys)
     assert code == 2 and "pizero resume" in err[0]
     assert (tmp_path / "config.json").read_text() == before
+
+
+@pytest.mark.parametrize("extra", [["--simulations", "1,0"], ["--populations", "64,x"], ["--simulations", ""]])
+def test_bad_bench_sweeps_are_one_line_errors(capsys, extra):
+    code, err = _run(["bench", "--quick", *extra], capsys)
+    assert code == 2
+    assert any(repr(extra[1]) in line and "positive integers" in line for line in err), err
