@@ -49,15 +49,18 @@ class BenchPlan:
     population_sweep: tuple[int, ...]
     sweep_modes: tuple[str, ...]  # which modes the sweeps cover
     planner_sweep: tuple[str, ...]  # exact mode, population as above
-    low_rank_trainer_workers: tuple[int, ...]  # the exact mode always runs 1 and 2 workers
+    straightforward: bool  # also measure the straightforward rollout (and the speed-ups over it)
+    exact_trainer_workers: tuple[int, ...]  # the first run starts with a cold compile cache; 2 must be among them
+    low_rank_trainer_workers: tuple[int, ...]
 
 
 FULL = BenchPlan(population=1000, chunk_size=40, low_rank_chunk_size=100, repeats=7, trainer_iterations=6,
                  simulation_sweep=(1, 10, 50), population_sweep=(64, 256, 1000), sweep_modes=("exact", "low_rank"),
-                 planner_sweep=("muzero", "gumbel", "none"), low_rank_trainer_workers=(1, 2))
+                 planner_sweep=("muzero", "gumbel", "none"), straightforward=True, exact_trainer_workers=(1, 2),
+                 low_rank_trainer_workers=(1, 2))
 QUICK = BenchPlan(population=64, chunk_size=16, low_rank_chunk_size=32, repeats=3, trainer_iterations=3,
-                  simulation_sweep=(1, 10), population_sweep=(64,), sweep_modes=("exact",),
-                  planner_sweep=(), low_rank_trainer_workers=())
+                  simulation_sweep=(10,), population_sweep=(64,), sweep_modes=("exact",),
+                  planner_sweep=(), straightforward=False, exact_trainer_workers=(2,), low_rank_trainer_workers=())
 
 
 def bench_config(population: int, chunk_size: int, simulations: int = 10, perturbation_rank: int = 0,
@@ -240,13 +243,14 @@ def run(plan: BenchPlan, progress=print) -> dict:
     modes = {"exact": (0, plan.chunk_size), "low_rank": (LOW_RANK, plan.low_rank_chunk_size)}
     configs = {mode: bench_config(plan.population, chunk, perturbation_rank=rank)
                for mode, (rank, chunk) in modes.items()}
-    progress(f"rollouts (exact, low_rank, straightforward; interleaved): population {plan.population}, "
-             "10 simulations")
-    # A Dirichlet weight of 1e-9 routes the search through mctx.muzero_policy,
-    # noise sampling included: the rollout as it is first written.
-    straightforward_config = bench_config(plan.population, plan.chunk_size, root_noise=1e-9)
-    main = rollouts({**configs, "straightforward": straightforward_config}, plan.repeats)
-    straightforward = main.pop("straightforward")
+    measured = dict(configs)
+    if plan.straightforward:
+        # A Dirichlet weight of 1e-9 routes the search through mctx.muzero_policy,
+        # noise sampling included: the rollout as it is first written.
+        measured["straightforward"] = bench_config(plan.population, plan.chunk_size, root_noise=1e-9)
+    progress(f"rollouts ({', '.join(measured)}; interleaved): population {plan.population}, 10 simulations")
+    main = rollouts(measured, plan.repeats)
+    straightforward = main.pop("straightforward", None)
     update_s, sweeps = {}, {"simulations": [], "population": []}
     for mode, (rank, chunk) in modes.items():
         progress(f"driver update ({mode})")
@@ -268,8 +272,8 @@ def run(plan: BenchPlan, progress=print) -> dict:
     planners = planner_sweep(plan, progress) if plan.planner_sweep else []
     trainers = {}
     with tempfile.TemporaryDirectory(prefix="pizero-bench-cache-") as cache:
-        for workers in (1, 2):
-            progress(f"Ray trainer (exact): {workers} worker(s)" + (" (cold compile cache)" if workers == 1 else ""))
+        for index, workers in enumerate(plan.exact_trainer_workers):
+            progress(f"Ray trainer (exact): {workers} worker(s)" + (" (cold compile cache)" if index == 0 else ""))
             trainers["exact", workers] = trainer(configs["exact"], workers, plan.trainer_iterations, cache)
         progress("Ray trainer (exact): a new worker with the compile cache warm")
         cached = trainer(configs["exact"], 1, 2, cache)
@@ -286,19 +290,21 @@ def run(plan: BenchPlan, progress=print) -> dict:
         "parameters": main["exact"]["parameters"],
         "low_rank_perturbation_rank": LOW_RANK,
         "low_rank_chunk_size": configs["low_rank"].chunk_size,
-        "straightforward_agent_steps_per_s": straightforward["agent_steps_per_s"],
     }
+    if straightforward:
+        result["straightforward_agent_steps_per_s"] = straightforward["agent_steps_per_s"]
     for mode in modes:
         suffix = "" if mode == "exact" else "_low_rank"
         result.update({
             f"rollout_agent_steps_per_s{suffix}": main[mode]["agent_steps_per_s"],
             f"rollout_simulations_per_s{suffix}": main[mode]["simulations_per_s"],
             f"rollout_iteration_s{suffix}": main[mode]["iteration_s"],
-            f"speedup_vs_straightforward{suffix}": main[mode]["agent_steps_per_s"]
-            / straightforward["agent_steps_per_s"],
             f"compile_s{suffix}": main[mode]["compile_s"],
             f"driver_update_s{suffix}": update_s[mode],
         })
+        if straightforward:
+            result[f"speedup_vs_straightforward{suffix}"] = (main[mode]["agent_steps_per_s"]
+                                                             / straightforward["agent_steps_per_s"])
         for workers in (1, 2):  # the Ray trainer's figures, where this plan ran them
             if (mode, workers) not in trainers:
                 continue
@@ -315,7 +321,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
         "peak_rss_mb": _peak_rss_mb(),
         "worker_peak_rss_mb": worker_rss["exact"],
         **({"worker_peak_rss_mb_low_rank": worker_rss["low_rank"]} if "low_rank" in worker_rss else {}),
-        "worker_first_result_s_cold": trainers["exact", 1]["worker_first_result_s"],
+        "worker_first_result_s_cold": trainers["exact", plan.exact_trainer_workers[0]]["worker_first_result_s"],
         "worker_first_result_s_cached": cached["worker_first_result_s"],
         **traffic(configs["exact"], main["exact"]["parameters"]),
         "simulation_sweep": [{k: r[k] for k in ("mode", "simulations", "agent_steps_per_s", "iteration_s")}

@@ -45,3 +45,5 @@ def test_bench_modes_differ_only_in_the_perturbation_and_the_straightforward_sea
     assert {k: v for k, v in vars(exact).items() if k not in ("perturbation_rank", "chunk_size", "root_noise")} == {
         k: v for k, v in vars(low_rank).items() if k not in ("perturbation_rank", "chunk_size", "root_noise")}
     assert bench.QUICK.low_rank_trainer_workers == () and set(bench.FULL.sweep_modes) == {"exact", "low_rank"}
+    for plan in (bench.QUICK, bench.FULL):  # distributed efficiency needs the 2-worker run
+        assert 2 in plan.exact_trainer_workers
