@@ -49,23 +49,29 @@ def test_flat_parameters_round_trip(tiny_config, tsp_env):
     assert set(params) == {"encoder", "memory", "decoder", "dynamics", "reward", "prediction"}
 
 
-def test_low_rank_members_play_exactly_theta_plus_the_expanded_noise(tsp_env):
+@pytest.mark.parametrize("env_name, extra", [
+    ("tsp", {}),
+    ("flp", {"chance_outcomes": 2}),  # continuous decoder; afterstate and chance networks
+])
+def test_low_rank_members_play_exactly_theta_plus_the_expanded_noise(tsp_env, env_name, extra):
     # The evaluator never forms a low-rank member's matrices; scoring the
     # formed matrices directly must give the same scores.
+    import envs
     from pizero_ray import es
 
-    config = build_config("tiny", perturbation_rank=2, sigma=0.5)
-    theta, layout = rollout.flat_params(config, tsp_env)
+    config = build_config("tiny", env=env_name, perturbation_rank=2, sigma=0.5, **extra)
+    env = tsp_env if env_name == "tsp" else envs.make(env_name)
+    theta, layout = rollout.flat_params(config, env)
     pairs = jnp.arange(3)
-    scores = np.asarray(rollout.make_pair_evaluator(config, tsp_env, layout)(theta, np.uint32(9), pairs))
+    scores = np.asarray(rollout.make_pair_evaluator(config, env, layout)(theta, np.uint32(9), pairs))
     key = es.iteration_key(np.uint32(9))
+    member_score = jax.jit(lambda member, episode_key: jnp.mean(
+        rollout.run_episodes(layout.unravel(member), config, env, episode_key, config.trials)))
     expected = []
     for i in range(3):
         z = es.expand_noise(es.pair_noise(key, i, layout.perturbation.noise_size), layout.perturbation)
         episode_key = es.pair_episode_key(key, i)
-        expected.append([float(jnp.mean(rollout.run_episodes(layout.unravel(theta + s * z), config, tsp_env,
-                                                              episode_key, config.trials)))
-                         for s in (config.sigma, -config.sigma)])
+        expected.append([float(member_score(theta + s * z, episode_key)) for s in (config.sigma, -config.sigma)])
     np.testing.assert_allclose(scores, expected, rtol=1e-5)
     assert not np.array_equal(scores[:, 0], scores[:, 1])
     assert layout.perturbation.noise_size < layout.size / 2
