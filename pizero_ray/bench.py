@@ -41,7 +41,7 @@ LOW_RANK = 1  # the perturbation rank the benchmark's low-rank mode uses
 @dataclass(frozen=True)
 class BenchPlan:
     population: int
-    chunk_size: int  # exact mode: past ~40 pairs a chunk's full-rank members stop fitting the caches
+    chunk_size: int  # exact mode: larger chunks were no faster (docs/performance.md)
     low_rank_chunk_size: int  # low-rank mode: bigger chunks make bigger shared matrix products
     repeats: int
     trainer_iterations: int
@@ -257,18 +257,20 @@ def run(plan: BenchPlan, progress=print) -> dict:
         update_s[mode] = driver_update(configs[mode], plan.repeats)
         if mode not in plan.sweep_modes:
             continue
-        for sims in plan.simulation_sweep:
-            if sims != 10:
-                progress(f"sweep ({mode}): {sims} simulations")
-            result = main[mode] if sims == 10 else rollout(
-                bench_config(plan.population, chunk, sims, perturbation_rank=rank), plan.repeats)
-            sweeps["simulations"].append({"mode": mode, **result})
-        for population in plan.population_sweep:
-            if population != plan.population:
-                progress(f"sweep ({mode}): population {population}")
-            result = main[mode] if population == plan.population else rollout(
-                bench_config(population, chunk, perturbation_rank=rank), plan.repeats)
-            sweeps["population"].append({"mode": mode, **result})
+        sweep_configs = {
+            "simulations": {sims: bench_config(plan.population, chunk, sims, perturbation_rank=rank)
+                            for sims in plan.simulation_sweep},
+            "population": {population: bench_config(population, chunk, perturbation_rank=rank)
+                           for population in plan.population_sweep},
+        }
+        for kind, points in sweep_configs.items():
+            for value, config in points.items():
+                if config == configs[mode]:  # the main measurement's point: not measured twice
+                    result = main[mode]
+                else:
+                    progress(f"sweep ({mode}): {kind} {value}")
+                    result = rollout(config, plan.repeats)
+                sweeps[kind].append({"mode": mode, **result})
     planners = planner_sweep(plan, progress) if plan.planner_sweep else []
     trainers = {}
     with tempfile.TemporaryDirectory(prefix="pizero-bench-cache-") as cache:

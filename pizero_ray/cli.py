@@ -163,7 +163,7 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--quick", action="store_true", help="a reduced version (population 64), about a minute")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--simulations", type=_positive_int_list, metavar="K1,K2,...",
-                       help="search budgets to sweep (default 1,10,50; --quick 1,10)")
+                       help="search budgets to sweep (default 1,10,50; --quick 10)")
     bench.add_argument("--populations", type=_positive_int_list, metavar="P1,P2,...",
                        help="populations (pairs) to sweep (default 64,256,1000; --quick 64)")
 

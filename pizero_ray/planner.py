@@ -60,9 +60,9 @@ def plan(params: networks.Params, config: Config, latent: jax.Array, key: jax.Ar
         return output, next_latent
 
     if config.planner == "muzero" and config.root_noise == 0:
-        tree = _muzero_search_without_root_noise(params, config, root, recurrent_fn, key)
-        visit_probs = tree.summary().visit_probs
-        return PlanResult(jnp.argmax(visit_probs, axis=-1).astype(jnp.int32), visit_probs, tree.summary().value)
+        summary = _muzero_search_without_root_noise(params, config, root, recurrent_fn, key).summary()
+        abstract_action = jnp.argmax(summary.visit_probs, axis=-1).astype(jnp.int32)
+        return PlanResult(abstract_action, summary.visit_probs, summary.value)
     if config.planner == "muzero":
         output = mctx.muzero_policy(
             params, key, root, recurrent_fn, config.num_simulations,
