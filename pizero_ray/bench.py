@@ -50,26 +50,30 @@ class BenchPlan:
     sweep_modes: tuple[str, ...]  # which modes the sweeps cover
     planner_sweep: tuple[str, ...]  # exact mode, population as above
     straightforward: bool  # also measure the straightforward rollout (and the speed-ups over it)
+    one_device: bool  # with several local devices, also measure each mode on one of them
     exact_trainer_workers: tuple[int, ...]  # the first run starts with a cold compile cache; 2 must be among them
     low_rank_trainer_workers: tuple[int, ...]
 
 
-FULL = BenchPlan(population=1000, chunk_size=40, low_rank_chunk_size=100, repeats=7, trainer_iterations=6,
+FULL = BenchPlan(population=1000, chunk_size=40, low_rank_chunk_size=250, repeats=7, trainer_iterations=6,
                  simulation_sweep=(1, 10, 50), population_sweep=(64, 256, 1000), sweep_modes=("exact", "low_rank"),
-                 planner_sweep=("muzero", "gumbel", "none"), straightforward=True, exact_trainer_workers=(1, 2),
-                 low_rank_trainer_workers=(1, 2))
+                 planner_sweep=("muzero", "gumbel", "none"), straightforward=True, one_device=True,
+                 exact_trainer_workers=(1, 2), low_rank_trainer_workers=(1, 2))
 QUICK = BenchPlan(population=64, chunk_size=16, low_rank_chunk_size=32, repeats=3, trainer_iterations=3,
                   simulation_sweep=(10,), population_sweep=(64,), sweep_modes=("exact",),
-                  planner_sweep=(), straightforward=False, exact_trainer_workers=(2,), low_rank_trainer_workers=())
+                  planner_sweep=(), straightforward=False, one_device=False, exact_trainer_workers=(2,),
+                  low_rank_trainer_workers=())
 
 
 def bench_config(population: int, chunk_size: int, simulations: int = 10, perturbation_rank: int = 0,
-                 root_noise: float = 0.0, planner: str = "muzero") -> Config:
+                 root_noise: float = 0.0, planner: str = "muzero", devices: int = 1) -> Config:
     """The paper's agent on TSP10 (one trial per member, as the trainer's default).
 
-    The chunk is the largest divisor of the population not above ``chunk_size``.
+    The chunk is the largest divisor of the population not above ``chunk_size``
+    that still gives each of ``devices`` devices a chunk.
     """
-    chunk = max(c for c in range(1, min(chunk_size, population) + 1) if population % c == 0)
+    limit = max(1, min(chunk_size, population // devices))
+    chunk = max(c for c in range(1, limit + 1) if population % c == 0)
     return build_config(
         "default", env="tsp", population=population, chunk_size=chunk, perturbation_rank=perturbation_rank,
         hidden_size=64, latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=simulations,
@@ -88,42 +92,42 @@ class CompiledRollout:
     compile_s: float
     parameters: int
     agent_steps: int  # per iteration
+    devices: int  # local devices the chunks were dealt over
 
 
-def compile_rollout(config: Config) -> CompiledRollout:
-    """The population rollout as a worker runs it, compiled for this process."""
-    import jax
-    import jax.numpy as jnp
-
+def compile_rollout(config: Config, max_devices: int | None = None) -> CompiledRollout:
+    """The population rollout as a worker runs it, compiled for this process's devices (or the first few)."""
     import envs
+    from pizero_ray import local_devices
     from pizero_ray import rollout as rollout_lib
 
-    env = envs.make(config.env, **config.env_kwargs())
-    theta, layout = rollout_lib.flat_params(config, env)
-    pairs = jnp.arange(config.chunk_size, dtype=jnp.int32)
+    theta, _ = rollout_lib.flat_params(config, envs.make(config.env, **config.env_kwargs()))
+    theta = np.asarray(theta)
     started = time.perf_counter()
-    compiled = rollout_lib.make_pair_evaluator(config, env, layout).lower(theta, np.uint32(0), pairs).compile()
-    compile_s = time.perf_counter() - started
+    chunks = local_devices.ChunkEvaluator(config, max_devices)
+    chunks.wait_until_compiled()
+    compile_s = time.perf_counter() - started  # every device's program
+    first_pairs = range(0, config.population, config.chunk_size)
 
     def one_iteration(seed: int) -> float:
         t0 = time.perf_counter()
-        outputs = [compiled(theta, np.uint32(seed), pairs + start)
-                   for start in range(0, config.population, config.chunk_size)]
-        jax.block_until_ready(outputs)
+        chunks.evaluate_all(theta, seed, first_pairs)  # returns once every chunk's scores are on the host
         return time.perf_counter() - t0
 
     one_iteration(0)  # warm-up
-    agent_steps = config.population * 2 * config.trials * env.spec.horizon
-    return CompiledRollout(config, one_iteration, compile_s, layout.size, agent_steps)
+    agent_steps = config.population * chunks.agent_steps_per_pair
+    return CompiledRollout(config, one_iteration, compile_s, chunks.parameters, agent_steps, chunks.num_devices)
 
 
-def rollouts(configs: dict[str, Config], repeats: int) -> dict[str, dict]:
+def rollouts(configs: dict[str, Config], repeats: int, max_devices: dict[str, int] | None = None) -> dict[str, dict]:
     """The population rollout alone, in this process: median iteration of each config.
 
-    Repeats of the configs are interleaved, so that a slow spell of a shared
-    machine hits all of them alike and their ratios stay meaningful.
+    Chunks are dealt over all local devices unless ``max_devices`` limits a
+    config. Repeats of the configs are interleaved, so that a slow spell of a
+    shared machine hits all of them alike and their ratios stay meaningful.
     """
-    compiled = {name: compile_rollout(config) for name, config in configs.items()}
+    limits = max_devices or {}
+    compiled = {name: compile_rollout(config, limits.get(name)) for name, config in configs.items()}
     times: dict[str, list[float]] = {name: [] for name in configs}
     for seed in range(1, repeats + 1):
         for name, run in compiled.items():
@@ -134,6 +138,7 @@ def rollouts(configs: dict[str, Config], repeats: int) -> dict[str, dict]:
         results[name] = {
             "population": run.config.population,
             "simulations": run.config.num_simulations,
+            "devices": run.devices,
             "iteration_s": seconds,
             "agent_steps_per_s": run.agent_steps / seconds,
             "simulations_per_s": run.agent_steps * run.config.num_simulations / seconds,
@@ -148,10 +153,10 @@ def rollout(config: Config, repeats: int) -> dict:
     return rollouts({"rollout": config}, repeats)["rollout"]
 
 
-def planner_sweep(plan: BenchPlan, progress=print) -> list[dict]:
+def planner_sweep(plan: BenchPlan, progress=print, devices: int = 1) -> list[dict]:
     """The exact-mode rollout with each planner (mctx MuZero, mctx Gumbel MuZero, none), interleaved."""
     progress(f"planner sweep (exact, interleaved): {', '.join(plan.planner_sweep)}")
-    configs = {planner: bench_config(plan.population, plan.chunk_size, planner=planner)
+    configs = {planner: bench_config(plan.population, plan.chunk_size, planner=planner, devices=devices)
                for planner in plan.planner_sweep}
     return [{"planner": planner, "agent_steps_per_s": r["agent_steps_per_s"], "iteration_s": r["iteration_s"]}
             for planner, r in rollouts(configs, plan.repeats).items()]
@@ -240,16 +245,22 @@ def run(plan: BenchPlan, progress=print) -> dict:
     from pizero_ray import ray_setup
 
     ray_setup.init(None)  # before JAX starts its threads
+    devices = len(jax.local_devices())
     modes = {"exact": (0, plan.chunk_size), "low_rank": (LOW_RANK, plan.low_rank_chunk_size)}
-    configs = {mode: bench_config(plan.population, chunk, perturbation_rank=rank)
+    configs = {mode: bench_config(plan.population, chunk, perturbation_rank=rank, devices=devices)
                for mode, (rank, chunk) in modes.items()}
-    measured = dict(configs)
+    measured, one_device = dict(configs), {}
+    if devices > 1 and plan.one_device:  # how much of the speed is the devices': each mode again on one device
+        one_device = {f"{mode}_one_device": 1 for mode in modes}
+        measured.update({f"{mode}_one_device": configs[mode] for mode in modes})
     if plan.straightforward:
         # A Dirichlet weight of 1e-9 routes the search through mctx.muzero_policy,
-        # noise sampling included: the rollout as it is first written.
+        # noise sampling included: the rollout as it is first written, on one device.
         measured["straightforward"] = bench_config(plan.population, plan.chunk_size, root_noise=1e-9)
-    progress(f"rollouts ({', '.join(measured)}; interleaved): population {plan.population}, 10 simulations")
-    main = rollouts(measured, plan.repeats)
+        one_device["straightforward"] = 1
+    progress(f"rollouts ({', '.join(measured)}; interleaved): population {plan.population}, 10 simulations, "
+             f"{devices} device(s)")
+    main = rollouts(measured, plan.repeats, one_device)
     straightforward = main.pop("straightforward", None)
     update_s, sweeps = {}, {"simulations": [], "population": []}
     for mode, (rank, chunk) in modes.items():
@@ -258,9 +269,9 @@ def run(plan: BenchPlan, progress=print) -> dict:
         if mode not in plan.sweep_modes:
             continue
         sweep_configs = {
-            "simulations": {sims: bench_config(plan.population, chunk, sims, perturbation_rank=rank)
+            "simulations": {sims: bench_config(plan.population, chunk, sims, perturbation_rank=rank, devices=devices)
                             for sims in plan.simulation_sweep},
-            "population": {population: bench_config(population, chunk, perturbation_rank=rank)
+            "population": {population: bench_config(population, chunk, perturbation_rank=rank, devices=devices)
                            for population in plan.population_sweep},
         }
         for kind, points in sweep_configs.items():
@@ -271,7 +282,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
                     progress(f"sweep ({mode}): {kind} {value}")
                     result = rollout(config, plan.repeats)
                 sweeps[kind].append({"mode": mode, **result})
-    planners = planner_sweep(plan, progress) if plan.planner_sweep else []
+    planners = planner_sweep(plan, progress, devices) if plan.planner_sweep else []
     trainers = {}
     with tempfile.TemporaryDirectory(prefix="pizero-bench-cache-") as cache:
         for index, workers in enumerate(plan.exact_trainer_workers):
@@ -288,6 +299,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
     result = {
         "device": str(jax.devices()[0]),
         "device_kind": jax.devices()[0].device_kind,
+        "rollout_devices": devices,
         "population": plan.population,
         "parameters": main["exact"]["parameters"],
         "low_rank_perturbation_rank": LOW_RANK,
@@ -304,9 +316,13 @@ def run(plan: BenchPlan, progress=print) -> dict:
             f"compile_s{suffix}": main[mode]["compile_s"],
             f"driver_update_s{suffix}": update_s[mode],
         })
+        if f"{mode}_one_device" in main:
+            result[f"rollout_agent_steps_per_s{suffix}_one_device"] = main[f"{mode}_one_device"]["agent_steps_per_s"]
         if straightforward:
-            result[f"speedup_vs_straightforward{suffix}"] = (main[mode]["agent_steps_per_s"]
-                                                             / straightforward["agent_steps_per_s"])
+            for variant in (mode, f"{mode}_one_device"):
+                if variant in main:
+                    result[f"speedup_vs_straightforward{suffix}{variant[len(mode):]}"] = (
+                        main[variant]["agent_steps_per_s"] / straightforward["agent_steps_per_s"])
         for workers in (1, 2):  # the Ray trainer's figures, where this plan ran them
             if (mode, workers) not in trainers:
                 continue

@@ -162,6 +162,8 @@ def _parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measure rollout, trainer and driver speed (TSP10, paper agent)")
     bench.add_argument("--quick", action="store_true", help="a reduced version (population 64), about a minute")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
+    bench.add_argument("--devices", type=_positive_int, metavar="N",
+                       help="JAX CPU devices the in-process rollout deals its chunks over (default: one per core)")
     bench.add_argument("--simulations", type=_positive_int_list, metavar="K1,K2,...",
                        help="search budgets to sweep (default 1,10,50; --quick 10)")
     bench.add_argument("--populations", type=_positive_int_list, metavar="P1,P2,...",
@@ -400,8 +402,9 @@ def _cmd_render(args) -> int:
 
 
 def _cmd_bench(args) -> int:
-    from pizero_ray import bench
+    from pizero_ray import bench, local_devices
 
+    local_devices.configure_cpu_devices(args.devices or local_devices.cpu_count())  # before JAX starts
     plan = bench.QUICK if args.quick else bench.FULL
     if args.simulations:
         plan = dataclasses.replace(plan, simulation_sweep=args.simulations)

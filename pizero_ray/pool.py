@@ -41,7 +41,7 @@ class PoolOptions:
     compile_cache: str | None = None
     chunk_timeout_s: float = 300.0  # one chunk on a ready worker; a worker past it is hung
     worker_start_timeout_s: float = 900.0  # no ready worker for this long: give up
-    in_flight_per_worker: int = 2  # keeps a worker busy while its last result travels
+    in_flight_per_worker: int = 2  # per device: keeps a worker busy while its last result travels
     min_fraction: float = 1.0  # < 1: finish once this fraction of chunks is in (not deterministic)
     worker_resources: tuple[tuple[str, float], ...] = ()  # custom Ray resources each worker needs
     # Chaos: (iteration, chunk) pairs; right after that chunk is handed out, its worker's process is SIGKILLed.
@@ -157,11 +157,12 @@ class WorkerPool:
                 raise Interrupted()
             self.top_up()
             for worker in self._workers:
-                while worker.ready and pending and worker.in_flight < self._options.in_flight_per_worker:
+                devices = worker.info.get("devices", 1)  # chunks the worker runs at once
+                while worker.ready and pending and worker.in_flight < self._options.in_flight_per_worker * devices:
                     index = pending.popleft()
                     ref = worker.actor.evaluate_chunk.remote(theta_ref, seed, index * chunk)
                     # The deadline allows for the chunks queued ahead of this one on the worker.
-                    deadline = time.time() + self._options.chunk_timeout_s * (worker.in_flight + 1)
+                    deadline = time.time() + self._options.chunk_timeout_s * (worker.in_flight // devices + 1)
                     in_flight[ref] = (index, worker, deadline)
                     worker.in_flight += 1
                     if (iteration, index) in self._options.kill_schedule - self._kills_done:

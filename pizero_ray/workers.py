@@ -4,6 +4,10 @@ A worker compiles its rollout ahead of time in ``__init__`` (a hit in JAX's
 persistent compilation cache when another worker compiled the same program
 before), so "ready" means "can return a chunk in one rollout's time", and the
 driver's per-chunk timeout need not allow for compiles.
+
+A CPU worker with N CPUs runs N JAX CPU devices and evaluates up to N chunks
+at once, one per device (``local_devices``); a GPU worker uses the GPUs Ray
+gave it the same way.
 """
 
 from __future__ import annotations
@@ -19,29 +23,21 @@ import ray
 class RolloutWorker:
     """Evaluates chunks of antithetic pairs; returns their scores [C, 2] as float32."""
 
-    def __init__(self, config_json: str, compile_cache_dir: str | None):
+    def __init__(self, config_json: str, compile_cache_dir: str | None, cpu_devices: int = 1):
         started = time.time()
-        from pizero_ray import compile_cache
+        from pizero_ray import compile_cache, local_devices
 
+        local_devices.configure_cpu_devices(cpu_devices)  # before JAX's first computation
         compile_cache.enable(compile_cache_dir)
-        import jax
-        import jax.numpy as jnp
-
-        import envs
-        from pizero_ray import rollout
         from pizero_ray.config import Config
 
         self.config = Config.from_json(config_json)
-        env = envs.make(self.config.env, **self.config.env_kwargs())
-        theta, layout = rollout.flat_params(self.config, env)
-        pairs = jnp.arange(self.config.chunk_size, dtype=jnp.int32)
-        evaluate = rollout.make_pair_evaluator(self.config, env, layout)
-        self._evaluate = evaluate.lower(theta, np.uint32(0), pairs).compile()
-        self._jnp = jnp
+        self._chunks = local_devices.ChunkEvaluator(self.config)
         self._info = {
             "pid": os.getpid(),
             "node_id": ray.get_runtime_context().get_node_id(),
-            "device": str(jax.devices()[0]),
+            "device": str(self._chunks.devices[0]),
+            "devices": self._chunks.num_devices,
             "startup_s": time.time() - started,
         }
 
@@ -53,10 +49,7 @@ class RolloutWorker:
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
     def evaluate_chunk(self, theta: np.ndarray, iteration_seed: int, first_pair: int) -> np.ndarray:
-        jnp = self._jnp
-        pairs = jnp.arange(first_pair, first_pair + self.config.chunk_size, dtype=jnp.int32)
-        scores = self._evaluate(jnp.asarray(theta, jnp.float32), np.uint32(iteration_seed), pairs)
-        return np.asarray(scores, dtype=np.float32)
+        return self._chunks.evaluate(theta, iteration_seed, first_pair)
 
 
 def start_worker(
@@ -65,8 +58,14 @@ def start_worker(
     env_vars = {"RAY_USAGE_STATS_ENABLED": "0"}
     if num_gpus == 0:
         env_vars["JAX_PLATFORMS"] = "cpu"  # a CPU worker on a GPU node must not grab the GPU
+    devices = worker_devices(num_cpus, num_gpus)
     actor = ray.remote(RolloutWorker).options(
         num_cpus=num_cpus, num_gpus=num_gpus, resources=resources or {}, runtime_env={"env_vars": env_vars},
-        max_concurrency=1,
+        max_concurrency=devices,  # a chunk per device at once
     )
-    return actor.remote(config_json, compile_cache_dir)
+    return actor.remote(config_json, compile_cache_dir, devices if num_gpus == 0 else 1)
+
+
+def worker_devices(num_cpus: float, num_gpus: float) -> int:
+    """How many chunks a worker runs at once: one per whole CPU (CPU workers) or per whole GPU."""
+    return max(1, int(num_gpus if num_gpus > 0 else num_cpus))

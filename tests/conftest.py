@@ -3,9 +3,14 @@ import os
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 
+import jax  # noqa: E402
 import pytest  # noqa: E402
 
 from pizero_ray.config import build_config  # noqa: E402
+
+# Two CPU devices, as a 2-core worker has: single-device code runs on the
+# first, and tests of local_devices can deal chunks over both.
+jax.config.update("jax_num_cpu_devices", 2)
 
 OBJECT_STORE_BYTES = 80 * 1024 * 1024
 

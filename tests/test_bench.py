@@ -13,6 +13,13 @@ def test_rollout_measures_agent_steps_of_the_whole_population():
     assert result["agent_steps_per_s"] * result["iteration_s"] == pytest.approx(steps)
     assert result["simulations_per_s"] == pytest.approx(result["agent_steps_per_s"] * config.num_simulations)
     assert result["compile_s"] > 0
+    assert result["devices"] == 2  # chunks dealt over both of the test process's CPU devices
+
+
+def test_rollouts_can_keep_a_config_to_one_device():
+    config = build_config("tiny", population=4, chunk_size=2)
+    results = bench.rollouts({"all": config, "one": config}, repeats=1, max_devices={"one": 1})
+    assert (results["all"]["devices"], results["one"]["devices"]) == (2, 1)
 
 
 def test_traffic_is_parameters_out_and_eight_bytes_per_pair_back():
@@ -34,6 +41,8 @@ def test_bench_chunks_divide_any_population():
     assert bench.bench_config(256, 40).chunk_size == 32
     assert bench.bench_config(64, 40).chunk_size == 32
     assert bench.bench_config(7, 40).chunk_size == 7
+    assert bench.bench_config(64, 40, devices=4).chunk_size == 16  # every device gets a chunk
+    assert bench.bench_config(1000, 250, devices=2).chunk_size == 250
 
 
 def test_bench_modes_differ_only_in_the_perturbation_and_the_straightforward_search():

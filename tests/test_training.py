@@ -10,11 +10,11 @@ from pizero_ray.cli import main
 from pizero_ray.config import build_config
 
 
-def _train(path, iterations, workers, compile_cache_dir, **overrides):
+def _train(path, iterations, workers, compile_cache_dir, cpus_per_worker=1.0, **overrides):
     config = build_config("tiny", **overrides)
     run_dir.write_config(path, config)
     options = driver.RunOptions(iterations=iterations, workers=workers, compile_cache=compile_cache_dir,
-                                checkpoint_every=2, eval_every=1, eval_episodes=8)
+                                checkpoint_every=2, eval_every=1, eval_episodes=8, cpus_per_worker=cpus_per_worker)
     return driver.train(path, config, options)
 
 
@@ -64,7 +64,9 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(ray_session, tmp_path,
 def test_worker_count_does_not_change_the_result(ray_session, tmp_path, compile_cache_dir):
     one = _train(tmp_path / "one", 2, 1, compile_cache_dir)
     three = _train(tmp_path / "three", 2, 3, compile_cache_dir)
-    assert one["parameter_hash"] == three["parameter_hash"]
+    # One worker with 2 CPUs runs two JAX CPU devices, a chunk on each at once.
+    two_devices = _train(tmp_path / "two-devices", 2, 1, compile_cache_dir, cpus_per_worker=2.0)
+    assert one["parameter_hash"] == three["parameter_hash"] == two_devices["parameter_hash"]
 
 
 def test_resume_continues_exactly(ray_session, tmp_path, compile_cache_dir):

@@ -1,0 +1,120 @@
+"""Every local device at once: one compiled pair evaluator per device, a chunk in flight on each.
+
+XLA's CPU backend runs the rollout's many small operations (the search's
+while loops, member-sized products) on one thread, so a process with one CPU
+device leaves its other cores mostly idle. A process with N cores therefore
+asks JAX for N CPU devices (``configure_cpu_devices``) and runs whole chunks
+on all of them concurrently. Each device runs the same single-device program
+on a whole chunk, so a chunk's scores do not depend on which device, or how
+many, computed it: the trainer stays deterministic whatever its workers'
+sizes. On a GPU node the devices are the GPUs the process may see.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import threading
+from typing import Sequence
+
+import numpy as np
+
+from pizero_ray.config import Config
+
+
+def configure_cpu_devices(count: int) -> None:
+    """Gives this process's JAX CPU backend ``count`` devices; call before JAX's first computation."""
+    import jax
+
+    jax.config.update("jax_num_cpu_devices", max(1, int(count)))
+
+
+def cpu_count() -> int:
+    """The cores this process may run on (its affinity mask, not the machine's total)."""
+    return len(os.sched_getaffinity(0))
+
+
+class ChunkEvaluator:
+    """The population rollout compiled for each local device: ``evaluate`` one chunk, or ``evaluate_all``.
+
+    ``evaluate`` may be called from several threads at once (a threaded Ray
+    actor): each call borrows a free device for the chunk's duration.
+    """
+
+    def __init__(self, config: Config, max_devices: int | None = None):
+        import jax
+        import jax.numpy as jnp
+        from jax.sharding import SingleDeviceSharding
+
+        import envs
+        from pizero_ray import rollout
+
+        self.config = config
+        env = envs.make(config.env, **config.env_kwargs())
+        theta, layout = rollout.flat_params(config, env)
+        self.parameters = layout.size
+        self.agent_steps_per_pair = 2 * config.trials * env.spec.horizon
+        self.devices = jax.local_devices()[:max_devices]
+        evaluate = rollout.make_pair_evaluator(config, env, layout)
+
+        def compile_for(device):
+            on = SingleDeviceSharding(device)
+            return evaluate.lower(
+                jax.ShapeDtypeStruct(theta.shape, jnp.float32, sharding=on),
+                jax.ShapeDtypeStruct((), jnp.uint32, sharding=on),
+                jax.ShapeDtypeStruct((config.chunk_size,), jnp.int32, sharding=on),
+            ).compile()
+
+        # The first device's program is compiled now, so that a worker is ready
+        # as soon as it can return a chunk; the others (the same program for
+        # another device: compiles side by side were no faster) follow in the
+        # background and join the free list as they are done.
+        self._jax = jax
+        self._free: queue.SimpleQueue[int] = queue.SimpleQueue()
+        self._compiled = [compile_for(self.devices[0])] + [None] * (len(self.devices) - 1)
+        self._free.put(0)
+        self._compile_error: BaseException | None = None
+        self._compiling = threading.Thread(target=self._compile_others, args=(compile_for,), daemon=True)
+        self._compiling.start()
+
+    def _compile_others(self, compile_for) -> None:
+        try:
+            for index in range(1, len(self.devices)):
+                self._compiled[index] = compile_for(self.devices[index])
+                self._free.put(index)
+        except BaseException as error:  # the worker goes on with the devices it has; evaluate_all reports it
+            self._compile_error = error
+
+    def wait_until_compiled(self) -> None:
+        """Returns once every device's program is compiled (raises if one failed)."""
+        self._compiling.join()
+        if self._compile_error is not None:
+            raise RuntimeError(f"compiling the rollout for another device failed: {self._compile_error}")
+
+    @property
+    def num_devices(self) -> int:
+        return len(self.devices)
+
+    def _dispatch(self, index: int, theta, seed: int, first_pair: int):
+        """Starts one chunk on device ``index``; returns its (not yet ready) scores."""
+        device = self.devices[index]
+        pairs = np.arange(first_pair, first_pair + self.config.chunk_size, dtype=np.int32)
+        put = self._jax.device_put
+        return self._compiled[index](put(theta, device), put(np.uint32(seed), device), put(pairs, device))
+
+    def evaluate(self, theta: np.ndarray, seed: int, first_pair: int) -> np.ndarray:
+        """Scores [chunk_size, 2] of the pairs from ``first_pair`` on, on whichever device is free."""
+        index = self._free.get()
+        try:
+            return np.asarray(self._dispatch(index, np.asarray(theta, np.float32), seed, first_pair), np.float32)
+        finally:
+            self._free.put(index)
+
+    def evaluate_all(self, theta: np.ndarray, seed: int, first_pairs: Sequence[int]) -> list[np.ndarray]:
+        """Many chunks, dealt round-robin over the devices and run concurrently (one thread)."""
+        self.wait_until_compiled()
+        theta = np.asarray(theta, np.float32)
+        on_device = [self._jax.device_put(theta, device) for device in self.devices]
+        pending = [self._dispatch(i % self.num_devices, on_device[i % self.num_devices], seed, first)
+                   for i, first in enumerate(first_pairs)]
+        return [np.asarray(scores, np.float32) for scores in pending]

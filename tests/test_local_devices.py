@@ -1,0 +1,78 @@
+"""Chunks dealt over several local devices score exactly as on one device."""
+
+import threading
+
+import jax
+import numpy as np
+import pytest
+
+import envs
+from pizero_ray import local_devices, rollout
+from pizero_ray.config import build_config
+
+CONFIG = build_config("tiny", population=8, chunk_size=2)
+FIRST_PAIRS = range(0, CONFIG.population, CONFIG.chunk_size)
+SEED = 12345
+
+
+@pytest.fixture(scope="module")
+def theta_and_reference():
+    """Initial parameters, and every chunk's scores from the plain jitted evaluator on the default device."""
+    env = envs.make(CONFIG.env, **CONFIG.env_kwargs())
+    theta, layout = rollout.flat_params(CONFIG, env)
+    evaluate = rollout.make_pair_evaluator(CONFIG, env, layout)
+    reference = [np.asarray(evaluate(theta, np.uint32(SEED), np.arange(first, first + CONFIG.chunk_size)))
+                 for first in FIRST_PAIRS]
+    return np.asarray(theta), reference
+
+
+@pytest.fixture(scope="module")
+def chunks():
+    return local_devices.ChunkEvaluator(CONFIG)
+
+
+def test_the_test_process_has_two_cpu_devices(chunks):
+    assert len(jax.local_devices()) == 2  # tests/conftest.py, as a 2-core worker
+    assert chunks.num_devices == 2 and chunks.devices[0] != chunks.devices[1]
+    assert chunks.agent_steps_per_pair == 2 * CONFIG.trials * 10  # TSP10
+
+
+def test_chunks_dealt_over_both_devices_score_as_on_one(chunks, theta_and_reference):
+    theta, reference = theta_and_reference
+    scores = chunks.evaluate_all(theta, SEED, FIRST_PAIRS)
+    assert len(scores) == len(reference)
+    for got, want in zip(scores, reference):
+        np.testing.assert_array_equal(got, want)
+        assert got.dtype == np.float32 and got.shape == (CONFIG.chunk_size, 2)
+
+
+def test_concurrent_calls_each_borrow_a_device_and_score_as_on_one(chunks, theta_and_reference):
+    theta, reference = theta_and_reference
+    for _ in range(2):  # a device not given back would leave the second round waiting
+        results = {}
+
+        def evaluate(index, first, results=results):
+            results[index] = chunks.evaluate(theta, SEED, first)
+
+        threads = [threading.Thread(target=evaluate, args=(i, first)) for i, first in enumerate(FIRST_PAIRS)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join(timeout=120)
+        assert sorted(results) == list(range(len(reference)))
+        for index, want in enumerate(reference):
+            np.testing.assert_array_equal(results[index], want)
+
+
+def test_a_worker_with_two_cpus_runs_two_devices(ray_session, compile_cache_dir, theta_and_reference):
+    from pizero_ray import workers
+
+    theta, reference = theta_and_reference
+    actor = workers.start_worker(CONFIG.to_json(), 2.0, 0.0, compile_cache_dir)
+    try:
+        assert ray_session.get(actor.ready.remote(), timeout=300)["devices"] == 2
+        refs = [actor.evaluate_chunk.remote(theta, SEED, first) for first in FIRST_PAIRS]
+        for got, want in zip(ray_session.get(refs, timeout=300), reference):
+            np.testing.assert_array_equal(got, want)
+    finally:
+        ray_session.kill(actor)
