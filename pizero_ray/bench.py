@@ -4,13 +4,16 @@ Measures, at the paper's agent (abstract state 64, hidden 64, k = 4, 10
 simulations) on TSP10, in two modes: ``exact`` (full-rank Gaussian noise, the
 default) and ``low_rank`` (the opt-in ``perturbation_rank`` 1, EGGROLL-style):
   - the jitted population rollout alone, in this process, chunk by chunk as a
-    worker runs it: agent-steps and MCTS simulations per second (median of
-    repeats after warm-up), compile time, peak memory;
+    worker runs it, its chunks dealt over every local device (one JAX CPU
+    device per core, ``local_devices``): agent-steps and MCTS simulations per
+    second (median of repeats after warm-up), compile time, peak memory; and
+    the same on one device;
   - a straightforward rollout for comparison: the same agent through
     ``mctx.muzero_policy`` (which samples Dirichlet noise even at weight ~0),
-    batch 1 per member, full-rank noise;
-  - the same work through the Ray trainer with 1 and 2 workers: iteration time,
-    and its ratio to the in-process rollout (distributed efficiency);
+    batch 1 per member, full-rank noise, one device;
+  - the same work through the Ray trainer with 1 and 2 workers sharing the
+    same cores: iteration time, and its ratio to the in-process rollout
+    (distributed efficiency);
   - the driver's update (noise regeneration + gradient + Adam) as a share of
     the iteration;
   - bytes per iteration each way;
@@ -55,7 +58,7 @@ class BenchPlan:
     low_rank_trainer_workers: tuple[int, ...]
 
 
-FULL = BenchPlan(population=1000, chunk_size=40, low_rank_chunk_size=250, repeats=7, trainer_iterations=6,
+FULL = BenchPlan(population=1000, chunk_size=40, low_rank_chunk_size=250, repeats=7, trainer_iterations=10,
                  simulation_sweep=(1, 10, 50), population_sweep=(64, 256, 1000), sweep_modes=("exact", "low_rank"),
                  planner_sweep=("muzero", "gumbel", "none"), straightforward=True, one_device=True,
                  exact_trainer_workers=(1, 2), low_rank_trainer_workers=(1, 2))
@@ -186,18 +189,21 @@ def driver_update(config: Config, repeats: int) -> float:
     return statistics.median(times)
 
 
-def trainer(config: Config, workers: int, iterations: int, cache_dir: str) -> dict:
+def trainer(config: Config, workers: int, iterations: int, cache_dir: str, cpus_per_worker: int = 1) -> dict:
     """The Ray trainer on the same work: median iteration and update time, first-result latency."""
     from pizero_ray import driver, run_dir
 
     with tempfile.TemporaryDirectory(prefix="pizero-bench-") as tmp:
         path = Path(tmp)
         run_dir.write_config(path, config)
-        options = driver.RunOptions(iterations=iterations, workers=workers, checkpoint_every=0,
+        options = driver.RunOptions(iterations=iterations, workers=workers, cpus_per_worker=cpus_per_worker,
+                                    checkpoint_every=0,
                                     compile_cache=cache_dir)
         driver.train(path, config, options)
         rows = [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
-    steady = rows[1:] or rows  # the first iteration waits for the workers' start
+    # The first iterations wait for the workers' start and, on a worker with
+    # several devices, for its other devices' compiles: the last half is steady.
+    steady = rows[len(rows) // 2:]
     first = rows[0].get("new_worker_first_result_s", [])
     return {
         "workers": workers,
@@ -284,15 +290,20 @@ def run(plan: BenchPlan, progress=print) -> dict:
                 sweeps[kind].append({"mode": mode, **result})
     planners = planner_sweep(plan, progress, devices) if plan.planner_sweep else []
     trainers = {}
+
+    def cpus_per_worker(workers: int) -> int:  # the workers share the cores the in-process rollout used
+        return max(1, devices // workers)
+
     with tempfile.TemporaryDirectory(prefix="pizero-bench-cache-") as cache:
-        for index, workers in enumerate(plan.exact_trainer_workers):
-            progress(f"Ray trainer (exact): {workers} worker(s)" + (" (cold compile cache)" if index == 0 else ""))
-            trainers["exact", workers] = trainer(configs["exact"], workers, plan.trainer_iterations, cache)
-        progress("Ray trainer (exact): a new worker with the compile cache warm")
-        cached = trainer(configs["exact"], 1, 2, cache)
-        for workers in plan.low_rank_trainer_workers:
-            progress(f"Ray trainer (low_rank): {workers} worker(s)")
-            trainers["low_rank", workers] = trainer(configs["low_rank"], workers, plan.trainer_iterations, cache)
+        for mode, counts in (("exact", plan.exact_trainer_workers), ("low_rank", plan.low_rank_trainer_workers)):
+            for workers in counts:
+                cold = " (cold compile cache)" if not trainers else ""
+                progress(f"Ray trainer ({mode}): {workers} worker(s), {cpus_per_worker(workers)} CPU(s) each{cold}")
+                trainers[mode, workers] = trainer(configs[mode], workers, plan.trainer_iterations, cache,
+                                                  cpus_per_worker(workers))
+            if mode == "exact":
+                progress("Ray trainer (exact): a new 1-CPU worker with the compile cache warm")
+                cached = trainer(configs["exact"], 1, 2, cache)
         progress("peak memory of a worker")
         worker_rss = {mode: worker_memory(configs[mode], cache) for mode in modes
                       if mode == "exact" or plan.low_rank_trainer_workers}
@@ -328,6 +339,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
                 continue
             run = trainers[mode, workers]
             label = "1_worker" if workers == 1 else "2_workers"
+            result[f"trainer_cpus_per_worker_{label}"] = cpus_per_worker(workers)
             result[f"trainer_iteration_s_{label}{suffix}"] = run["iteration_s"]
             efficiency = main[mode]["iteration_s"] / run["iteration_s"]
             if workers == 2:

@@ -75,6 +75,8 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
                         help="seconds before a worker holding a chunk counts as hung (default 300)")
     parser.add_argument("--cpus-per-worker", type=float, default=1.0)
     parser.add_argument("--gpus-per-worker", type=float, default=0.0)
+    parser.add_argument("--no-pin-cores", action="store_true",
+                        help="leave CPU workers unpinned (default: each pins itself to cores no other worker holds)")
     parser.add_argument("--address", default=None,
                         help="Ray cluster address (default: RAY_ADDRESS, else a local instance)")
     parser.add_argument("--checkpoint-every", type=_non_negative_int, default=25, help="iterations between checkpoints")
@@ -226,6 +228,7 @@ def _run_options(args, iterations: int):
         eval_every=args.eval_every,
         eval_episodes=args.eval_episodes,
         compile_cache=args.compile_cache or str(DEFAULT_DIR),
+        pin_cores=not args.no_pin_cores,
     )
 
 

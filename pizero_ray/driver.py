@@ -50,6 +50,7 @@ class RunOptions:
     min_fraction: float = 1.0
     compile_cache: str | None = str(compile_cache.DEFAULT_DIR)
     worker_resources: tuple[tuple[str, float], ...] = ()
+    pin_cores: bool = True  # CPU workers pin themselves to cores of their own (local_devices.CoreClaim)
     kill_schedule: frozenset[tuple[int, int]] = frozenset()  # chaos: see pool.PoolOptions
 
     def pool_options(self) -> PoolOptions:
@@ -62,6 +63,7 @@ class RunOptions:
             worker_start_timeout_s=self.worker_start_timeout_s,
             min_fraction=self.min_fraction,
             worker_resources=self.worker_resources,
+            pin_cores=self.pin_cores,
             kill_schedule=self.kill_schedule,
         )
 

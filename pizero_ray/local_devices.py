@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import os
 import queue
+import tempfile
 import threading
+from pathlib import Path
 from typing import Sequence
 
 import numpy as np
@@ -32,6 +34,57 @@ def configure_cpu_devices(count: int) -> None:
 def cpu_count() -> int:
     """The cores this process may run on (its affinity mask, not the machine's total)."""
     return len(os.sched_getaffinity(0))
+
+
+class CoreClaim:
+    """Cores this process holds for itself: one lock file per core, released when the process ends.
+
+    Two unpinned JAX processes on a node run at about half speed each (measured:
+    two 1-CPU workers sharing 2 cores took 0.50 s per chunk pair where each
+    pinned to its own core took 0.28 s), so a worker claims as many cores as it
+    has CPUs and pins itself to them. The locks are ``flock``s: a killed worker
+    frees its cores at once, with nothing to clean up.
+    """
+
+    def __init__(self, cores: tuple[int, ...], lock_fds: list[int]):
+        self.cores = cores
+        self._lock_fds = lock_fds  # open for the claim's (the worker's) lifetime
+
+    @classmethod
+    def claim(cls, count: int, lock_dir: str | os.PathLike | None = None) -> CoreClaim:
+        """Pins this process to ``count`` cores no other claimant on this machine holds.
+
+        Claims nothing (an empty claim, the process left as it was) when it
+        would be all the cores anyway, or when not enough are free.
+        """
+        import fcntl
+
+        allowed = sorted(os.sched_getaffinity(0))
+        if count >= len(allowed):
+            return cls((), [])
+        directory = Path(lock_dir) if lock_dir else Path(tempfile.gettempdir()) / "pizero-ray-cores"
+        held: list[tuple[int, int]] = []
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+            for core in allowed:
+                fd = os.open(directory / f"core-{core}.lock", os.O_CREAT | os.O_RDWR, 0o666)
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except OSError:
+                    os.close(fd)
+                    continue
+                held.append((core, fd))
+                if len(held) == count:
+                    break
+        except OSError:  # an unwritable lock dir: run unpinned
+            pass
+        if len(held) < count:
+            for _, fd in held:
+                os.close(fd)
+            return cls((), [])
+        cores = tuple(core for core, _ in held)
+        os.sched_setaffinity(0, cores)
+        return cls(cores, [fd for _, fd in held])
 
 
 class ChunkEvaluator:

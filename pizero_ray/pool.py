@@ -44,6 +44,7 @@ class PoolOptions:
     in_flight_per_worker: int = 2  # per device: keeps a worker busy while its last result travels
     min_fraction: float = 1.0  # < 1: finish once this fraction of chunks is in (not deterministic)
     worker_resources: tuple[tuple[str, float], ...] = ()  # custom Ray resources each worker needs
+    pin_cores: bool = True  # CPU workers pin themselves to cores of their own where they can
     # Chaos: (iteration, chunk) pairs; right after that chunk is handed out, its worker's process is SIGKILLed.
     kill_schedule: frozenset[tuple[int, int]] = frozenset()
 
@@ -107,7 +108,7 @@ class WorkerPool:
         while len(self._workers) < self._options.max_workers:
             actor = workers.start_worker(
                 self._config_json, self._options.cpus_per_worker, self._options.gpus_per_worker,
-                self._options.compile_cache, dict(self._options.worker_resources),
+                self._options.compile_cache, dict(self._options.worker_resources), self._options.pin_cores,
             )
             self._workers.append(_Worker(actor, time.time(), ready_ref=actor.ready.remote()))
 

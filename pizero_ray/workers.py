@@ -23,10 +23,11 @@ import ray
 class RolloutWorker:
     """Evaluates chunks of antithetic pairs; returns their scores [C, 2] as float32."""
 
-    def __init__(self, config_json: str, compile_cache_dir: str | None, cpu_devices: int = 1):
+    def __init__(self, config_json: str, compile_cache_dir: str | None, cpu_devices: int = 1, pin_cores: bool = False):
         started = time.time()
         from pizero_ray import compile_cache, local_devices
 
+        self._cores = local_devices.CoreClaim.claim(cpu_devices) if pin_cores else local_devices.CoreClaim((), [])
         local_devices.configure_cpu_devices(cpu_devices)  # before JAX's first computation
         compile_cache.enable(compile_cache_dir)
         from pizero_ray.config import Config
@@ -38,6 +39,7 @@ class RolloutWorker:
             "node_id": ray.get_runtime_context().get_node_id(),
             "device": str(self._chunks.devices[0]),
             "devices": self._chunks.num_devices,
+            "pinned_cores": list(self._cores.cores),
             "startup_s": time.time() - started,
         }
 
@@ -53,8 +55,10 @@ class RolloutWorker:
 
 
 def start_worker(
-    config_json: str, num_cpus: float, num_gpus: float, compile_cache_dir: str | None, resources: dict | None = None
+    config_json: str, num_cpus: float, num_gpus: float, compile_cache_dir: str | None, resources: dict | None = None,
+    pin_cores: bool = True,
 ):
+    """A worker actor; a CPU worker pins itself to cores of its own if it can (``local_devices.CoreClaim``)."""
     env_vars = {"RAY_USAGE_STATS_ENABLED": "0"}
     if num_gpus == 0:
         env_vars["JAX_PLATFORMS"] = "cpu"  # a CPU worker on a GPU node must not grab the GPU
@@ -63,7 +67,9 @@ def start_worker(
         num_cpus=num_cpus, num_gpus=num_gpus, resources=resources or {}, runtime_env={"env_vars": env_vars},
         max_concurrency=devices,  # a chunk per device at once
     )
-    return actor.remote(config_json, compile_cache_dir, devices if num_gpus == 0 else 1)
+    if num_gpus > 0:
+        return actor.remote(config_json, compile_cache_dir)
+    return actor.remote(config_json, compile_cache_dir, devices, pin_cores)
 
 
 def worker_devices(num_cpus: float, num_gpus: float) -> int:

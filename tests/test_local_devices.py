@@ -70,9 +70,56 @@ def test_a_worker_with_two_cpus_runs_two_devices(ray_session, compile_cache_dir,
     theta, reference = theta_and_reference
     actor = workers.start_worker(CONFIG.to_json(), 2.0, 0.0, compile_cache_dir)
     try:
-        assert ray_session.get(actor.ready.remote(), timeout=300)["devices"] == 2
+        info = ray_session.get(actor.ready.remote(), timeout=300)
+        assert info["devices"] == 2
+        if local_devices.cpu_count() == 2:
+            assert info["pinned_cores"] == []  # both cores: nothing to pin
         refs = [actor.evaluate_chunk.remote(theta, SEED, first) for first in FIRST_PAIRS]
         for got, want in zip(ray_session.get(refs, timeout=300), reference):
             np.testing.assert_array_equal(got, want)
     finally:
         ray_session.kill(actor)
+
+
+_CLAIM = """
+import json, os, sys
+from pizero_ray.local_devices import CoreClaim
+claim = CoreClaim.claim(int(sys.argv[1]), sys.argv[2])
+print(json.dumps([sorted(claim.cores), sorted(os.sched_getaffinity(0))]), flush=True)
+sys.stdin.readline()  # hold the claim until told to go
+"""
+
+
+def _claimant(count, lock_dir):
+    """A process that claims ``count`` cores and holds them until its stdin gets a line."""
+    import json
+    import subprocess
+    import sys
+
+    process = subprocess.Popen([sys.executable, "-c", _CLAIM, str(count), str(lock_dir)],
+                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    cores, affinity = json.loads(process.stdout.readline())
+    return process, cores, affinity
+
+
+def test_processes_claim_cores_of_their_own_and_free_them_on_exit(tmp_path):
+    cores = local_devices.cpu_count()
+    if cores < 2:
+        pytest.skip("needs two cores")
+    first, first_cores, first_affinity = _claimant(1, tmp_path)
+    second, second_cores, _ = _claimant(cores - 1, tmp_path)
+    try:
+        assert len(first_cores) == 1 and first_affinity == first_cores  # pinned to the core it holds
+        assert len(second_cores) == cores - 1 and not set(first_cores) & set(second_cores)
+        third, third_cores, third_affinity = _claimant(1, tmp_path)  # every core is held: runs unpinned
+        third.communicate("\n", timeout=60)
+        assert third_cores == [] and len(third_affinity) == cores
+    finally:
+        first.communicate("\n", timeout=60)
+    again, again_cores, _ = _claimant(1, tmp_path)  # the first claimant's exit freed its core
+    again.communicate("\n", timeout=60)
+    second.communicate("\n", timeout=60)
+    assert again_cores == first_cores
+    whole, whole_cores, whole_affinity = _claimant(cores, tmp_path)  # all of them: nothing to pin
+    whole.communicate("\n", timeout=60)
+    assert whole_cores == [] and len(whole_affinity) == cores
