@@ -176,8 +176,8 @@ def driver_update(config: Config, repeats: int) -> float:
 
     env = envs.make(config.env)
     theta, layout = rollout_lib.flat_params(config, env)
-    optimizer, update = es.make_update(config, layout.perturbation)
-    state = optimizer.init(theta)
+    update = es.make_update(config, layout.perturbation)
+    state = update.optimizer.init(theta)
     scores = jnp.asarray(np.random.default_rng(0).normal(size=(config.population, 2)), jnp.float32)
     valid = jnp.ones((config.population,), bool)
     jax.block_until_ready(update(theta, state, np.uint32(0), scores, valid))

@@ -2,14 +2,18 @@
 
 Each iteration: derive the iteration seed from (run seed, iteration), put the
 parameters in the object store once, let the worker pool evaluate the queue of
-chunks of pair indices, regenerate the noise here to form the pseudo-gradient
-from the scores (in chunk order, whoever computed them), and take an Adam step.
-Only a seed, an object reference and a chunk index go out; only scores come
-back. Checkpoints every K iterations and on exit, SIGTERM or SIGINT.
+chunks of pair indices, turn the scores into per-pair weights, collect each
+chunk's share of the pseudo-gradient from the worker that still holds the
+chunk's noise (or regenerate it here), add the shares in chunk order and take
+an Adam step. Only a seed, an object reference and a chunk index go out for a
+chunk, scores come back; then a chunk's weights go out and its share (one
+vector) comes back. Checkpoints every K iterations and on exit, SIGTERM or
+SIGINT.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import signal
@@ -78,8 +82,8 @@ def _initial_state(config: Config, env):
     from pizero_ray import es, rollout
 
     theta, layout = rollout.flat_params(config, env)
-    optimizer, update = es.make_update(config, layout.perturbation)
-    return np.asarray(theta), optimizer.init(jnp.asarray(theta)), layout, update
+    update = es.make_update(config, layout.perturbation)
+    return np.asarray(theta), update.optimizer.init(jnp.asarray(theta)), layout, update
 
 
 class LoadedRun(NamedTuple):
@@ -210,9 +214,12 @@ def train(
                 except Interrupted:
                     break  # the unfinished iteration is dropped; the last finished one is saved below
                 t1 = time.time()
-                theta_device, opt_state, stats = update(
-                    theta_device, opt_state, np.uint32(seed), jnp.asarray(result.scores), jnp.asarray(result.valid)
-                )
+                weights, num_pairs = update.weights(jnp.asarray(result.scores), jnp.asarray(result.valid))
+                weights = np.asarray(weights)
+                parts, parts_here = pool.gradient_parts(
+                    seed, weights, result.owners, functools.partial(update.part_here, seed, weights))
+                theta_device, opt_state, stats = update.step(
+                    theta_device, opt_state, es.GradientParts.total(parts), num_pairs)
                 theta_device.block_until_ready()
                 iteration += 1
                 now = time.time()
@@ -225,6 +232,7 @@ def train(
                     "min_score": float(scores.min()),
                     "pairs_evaluated": int(result.valid.sum()),
                     "requeued_chunks": result.requeued_chunks,
+                    "gradient_parts_on_driver": parts_here,
                     "iteration_time_s": now - t0,
                     "update_time_s": now - t1,
                     "wall_time_s": wall_offset + now - started,

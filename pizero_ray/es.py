@@ -2,10 +2,12 @@
 
 Pair i's noise z_i is a pure function of (iteration seed, i): any process can
 regenerate any member's noise, so only seeds and scalar scores ever travel.
-The driver forms the pseudo-gradient
+The pseudo-gradient
     g = sum_i w_i z_i / (2 sigma n),   w_i = shaped(score_i+) - shaped(score_i-)
-chunk by chunk (never more than one chunk of noise in memory) in a fixed order,
-and takes an ascent step with Adam.
+is a sum of per-chunk parts (``GradientParts``), added in chunk order: the
+worker that evaluated a chunk computes its part from the noise it kept, the
+driver regenerates the noise of any other (one chunk in memory at a time).
+Then Adam takes an ascent step.
 
 With ``perturbation_rank`` r > 0 (opt-in, after EGGROLL, Sarkar et al. 2025)
 every weight matrix's noise is low rank, E = A B^T / sqrt(r) with A, B standard
@@ -144,6 +146,12 @@ def pair_weights(scores: jax.Array, fitness_shaping: str, valid: jax.Array | Non
     return weights if valid is None else jnp.where(valid, weights, 0.0)
 
 
+def chunk_noise(key: jax.Array, first_pair: jax.Array, chunk_size: int, noise_size: int) -> jax.Array:
+    """The noise [C, noise_size] of the chunk of pairs first_pair .. first_pair + C - 1."""
+    pairs = first_pair + jnp.arange(chunk_size)
+    return jax.vmap(pair_noise, in_axes=(None, 0, None))(key, pairs, noise_size)
+
+
 def pseudo_gradient(
     key: jax.Array,
     weights: jax.Array,
@@ -152,9 +160,11 @@ def pseudo_gradient(
     chunk_size: int,
     num_pairs: jax.Array | None = None,
 ) -> jax.Array:
-    """sum_i w_i z_i / (2 sigma n), regenerating the noise one chunk at a time.
+    """sum_i w_i z_i / (2 sigma n) in one function, regenerating the noise one chunk at a time.
 
-    ``num_pairs`` is n when some weights are zero because their pairs were dropped.
+    The reference the trainer's chunk-by-chunk ``GradientParts`` are tested
+    against. ``num_pairs`` is n when some weights are zero because their pairs
+    were dropped.
     """
     size, noise_size = perturbation.parameter_size, perturbation.noise_size
     total_pairs = weights.shape[0]
@@ -163,11 +173,48 @@ def pseudo_gradient(
 
     def add_chunk(total, chunk):
         start, chunk_weights = chunk
-        noise = jax.vmap(pair_noise, in_axes=(None, 0, None))(key, start + jnp.arange(chunk_size), noise_size)
+        noise = chunk_noise(key, start, chunk_size, noise_size)
         return total + weighted_noise_sum(chunk_weights, noise, perturbation), None
 
     total, _ = jax.lax.scan(add_chunk, jnp.zeros((size,), jnp.float32), (starts, chunks))
     return total / (2.0 * sigma * (total_pairs if num_pairs is None else num_pairs))
+
+
+class GradientParts(NamedTuple):
+    """The pseudo-gradient chunk by chunk: each chunk's share sum_{i in chunk} w_i z_i, wherever it is computed.
+
+    A worker computes a chunk's part from the noise it kept from evaluating the
+    chunk, anyone else from regenerated noise: both go through the same
+    ``part`` function on the same noise, so the part is the same bits either
+    way, and ``total`` adds the parts in chunk order.
+    """
+
+    noise: object  # jit(iteration_seed, first_pair) -> noise [C, noise_size]
+    part: object  # jit(weights [C], noise [C, noise_size]) -> [D]
+    chunk_size: int
+
+    def regenerated(self, seed, first_pair: int, weights: np.ndarray) -> np.ndarray:
+        return np.asarray(self.part(weights, self.noise(np.uint32(seed), np.int32(first_pair))), np.float32)
+
+    @staticmethod
+    def total(parts) -> np.ndarray:
+        """sum of the parts, added one by one in the given (chunk) order."""
+        total = None
+        for part in parts:
+            total = np.array(part, np.float32) if total is None else total + part
+        return total
+
+
+def gradient_parts(config: Config, perturbation: Perturbation) -> GradientParts:
+    noise_size, chunk = perturbation.noise_size, config.chunk_size
+
+    def noise(seed, first_pair):
+        return chunk_noise(iteration_key(seed), first_pair, chunk, noise_size)
+
+    def part(weights, noise):
+        return weighted_noise_sum(weights, noise, perturbation)
+
+    return GradientParts(jax.jit(noise), jax.jit(part), chunk)
 
 
 def make_optimizer(config: Config) -> optax.GradientTransformation:
@@ -182,21 +229,48 @@ class UpdateStats(NamedTuple):
     parameter_norm: jax.Array
 
 
-def make_update(config: Config, perturbation: Perturbation):
-    """jit(theta, opt_state, iteration_seed, scores [n, 2], valid [n]) -> (theta, opt_state, stats).
+class Update(NamedTuple):
+    """The driver's update in its three steps (so that the middle one can run on the workers)."""
+
+    optimizer: optax.GradientTransformation
+    weights: object  # jit(scores [n, 2], valid [n]) -> (w [n], number of valid pairs)
+    parts: GradientParts
+    step: object  # jit(theta, opt_state, sum of the parts, number of valid pairs) -> (theta, opt_state, stats)
+    parameter_size: int
+
+    def part_here(self, seed, weights: np.ndarray, chunk_index: int) -> np.ndarray:
+        """One chunk's part from regenerated noise (zeros for a chunk whose weights are all zero)."""
+        chunk = self.parts.chunk_size
+        chunk_weights = weights[chunk_index * chunk:(chunk_index + 1) * chunk]
+        if not chunk_weights.any():
+            return np.zeros(self.parameter_size, np.float32)
+        return self.parts.regenerated(seed, chunk_index * chunk, chunk_weights)
+
+    def __call__(self, theta, opt_state, seed, scores, valid):
+        """The whole update in this process: every chunk's part from regenerated noise, one chunk at a time."""
+        weights, num_pairs = self.weights(scores, valid)
+        weights = np.asarray(weights)
+        parts = (self.part_here(seed, weights, index) for index in range(weights.shape[0] // self.parts.chunk_size))
+        return self.step(theta, opt_state, GradientParts.total(parts), num_pairs)
+
+
+def make_update(config: Config, perturbation: Perturbation) -> Update:
+    """The update: (theta, opt_state, iteration_seed, scores [n, 2], valid [n]) -> (theta, opt_state, stats).
 
     ``valid`` marks the pairs whose scores came in (all of them unless a run
     lets iterations finish early with ``min_fraction``).
     """
     optimizer = make_optimizer(config)
 
-    def update(theta, opt_state, seed, scores, valid):
-        weights = pair_weights(scores, config.fitness_shaping, valid)
-        num_pairs = jnp.maximum(jnp.sum(valid), 1).astype(jnp.float32)
-        g = pseudo_gradient(iteration_key(seed), weights, config.sigma, perturbation, config.chunk_size, num_pairs)
+    def weights(scores, valid):
+        return pair_weights(scores, config.fitness_shaping, valid), jnp.maximum(jnp.sum(valid), 1)
+
+    def step(theta, opt_state, parts_total, num_pairs):
+        g = parts_total / (2.0 * config.sigma * num_pairs.astype(jnp.float32))
         updates, opt_state = optimizer.update(-g, opt_state, theta)
         new_theta = optax.apply_updates(theta, updates)
         stats = UpdateStats(jnp.linalg.norm(g), jnp.linalg.norm(updates), jnp.linalg.norm(new_theta))
         return new_theta, opt_state, stats
 
-    return optimizer, jax.jit(update)
+    return Update(optimizer, jax.jit(weights), gradient_parts(config, perturbation), jax.jit(step),
+                  perturbation.parameter_size)

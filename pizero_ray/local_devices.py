@@ -23,6 +23,11 @@ import numpy as np
 
 from pizero_ray.config import Config
 
+# A worker keeps each chunk's noise until the driver asks for the chunk's share
+# of the gradient (saving the driver its regeneration), up to this many bytes:
+# 40 pairs of the bench agent's full-rank noise take 8.7 MB.
+NOISE_CACHE_BYTES = 1 << 30
+
 
 def configure_cpu_devices(count: int) -> None:
     """Gives this process's JAX CPU backend ``count`` devices; call before JAX's first computation."""
@@ -100,7 +105,7 @@ class ChunkEvaluator:
         from jax.sharding import SingleDeviceSharding
 
         import envs
-        from pizero_ray import rollout
+        from pizero_ray import es, rollout
 
         self.config = config
         env = envs.make(config.env, **config.env_kwargs())
@@ -108,7 +113,12 @@ class ChunkEvaluator:
         self.parameters = layout.size
         self.agent_steps_per_pair = 2 * config.trials * env.spec.horizon
         self.devices = jax.local_devices()[:max_devices]
-        evaluate = rollout.make_pair_evaluator(config, env, layout)
+        evaluate = rollout.make_pair_evaluator(config, env, layout, with_noise=True)
+        self._parts = es.gradient_parts(config, layout.perturbation)
+        self._chunk_noise_bytes = config.chunk_size * layout.perturbation.noise_size * 4
+        self._noise_lock = threading.Lock()
+        self._noise_seed: int | None = None
+        self._noise: dict[int, object] = {}  # first pair -> the chunk's noise, kept on its device
 
         def compile_for(device):
             on = SingleDeviceSharding(device)
@@ -149,7 +159,7 @@ class ChunkEvaluator:
         return len(self.devices)
 
     def _dispatch(self, index: int, theta, seed: int, first_pair: int):
-        """Starts one chunk on device ``index``; returns its (not yet ready) scores."""
+        """Starts one chunk on device ``index``; returns its (not yet ready) scores and noise."""
         device = self.devices[index]
         pairs = np.arange(first_pair, first_pair + self.config.chunk_size, dtype=np.int32)
         put = self._jax.device_put
@@ -159,9 +169,27 @@ class ChunkEvaluator:
         """Scores [chunk_size, 2] of the pairs from ``first_pair`` on, on whichever device is free."""
         index = self._free.get()
         try:
-            return np.asarray(self._dispatch(index, np.asarray(theta, np.float32), seed, first_pair), np.float32)
+            scores, noise = self._dispatch(index, np.asarray(theta, np.float32), seed, first_pair)
+            scores = np.asarray(scores, np.float32)
         finally:
             self._free.put(index)
+        self._keep_noise(seed, first_pair, noise)
+        return scores
+
+    def _keep_noise(self, seed: int, first_pair: int, noise) -> None:
+        with self._noise_lock:
+            if seed != self._noise_seed:  # a new iteration: the last one's noise is of no more use
+                self._noise_seed, self._noise = seed, {}
+            if (len(self._noise) + 1) * self._chunk_noise_bytes <= NOISE_CACHE_BYTES:
+                self._noise[first_pair] = noise
+
+    def gradient_part(self, seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
+        """The chunk's share sum_i w_i z_i [D], from the noise kept while evaluating it, else regenerated."""
+        with self._noise_lock:
+            noise = self._noise.pop(first_pair, None) if seed == self._noise_seed else None
+        if noise is None:
+            return self._parts.regenerated(seed, first_pair, weights)
+        return np.asarray(self._parts.part(np.asarray(weights, np.float32), noise), np.float32)
 
     def evaluate_all(self, theta: np.ndarray, seed: int, first_pairs: Sequence[int]) -> list[np.ndarray]:
         """Many chunks, dealt round-robin over the devices and run concurrently (one thread)."""
@@ -170,4 +198,4 @@ class ChunkEvaluator:
         on_device = [self._jax.device_put(theta, device) for device in self.devices]
         pending = [self._dispatch(i % self.num_devices, on_device[i % self.num_devices], seed, first)
                    for i, first in enumerate(first_pairs)]
-        return [np.asarray(scores, np.float32) for scores in pending]
+        return [np.asarray(scores, np.float32) for scores, _ in pending]

@@ -67,6 +67,7 @@ class IterationResult:
     requeued_chunks: int
     new_worker_first_result_s: list[float]
     worker_nodes: list[str]  # Ray node ids of the workers that returned chunks
+    owners: dict = field(default_factory=dict)  # chunk index -> the worker that evaluated it (it kept the noise)
 
 
 class WorkerPool:
@@ -143,6 +144,7 @@ class WorkerPool:
         requeued = 0
         first_results: list[float] = []
         nodes: set[str] = set()
+        owners: dict[int, _Worker] = {}
 
         def fail_chunk(index: int, worker: _Worker, kill: bool) -> None:
             nonlocal requeued
@@ -201,6 +203,7 @@ class WorkerPool:
                         # The worker died (or its node did): the chunk runs elsewhere.
                         fail_chunk(index, worker, kill=False)
                         continue
+                    owners[index] = worker
                     nodes.add(worker.info.get("node_id", "?"))
                     if worker.first_result_s is None:
                         worker.first_result_s = time.time() - worker.created
@@ -229,4 +232,39 @@ class WorkerPool:
         for index, chunk_scores in results.items():
             scores[index * chunk:(index + 1) * chunk] = chunk_scores
             valid[index * chunk:(index + 1) * chunk] = True
-        return IterationResult(scores, valid, requeued, first_results, sorted(nodes))
+        return IterationResult(scores, valid, requeued, first_results, sorted(nodes), owners)
+
+    def gradient_parts(
+        self, seed: int, weights: np.ndarray, owners: dict, compute_here: Callable[[int], np.ndarray]
+    ) -> tuple[list[np.ndarray], int]:
+        """Every chunk's share of the pseudo-gradient, in chunk order, and how many were computed here.
+
+        The worker that evaluated a chunk still holds its noise and returns the
+        part in about a millisecond; a chunk whose worker is gone, fails or
+        does not answer within the chunk timeout is computed by
+        ``compute_here`` (regenerating its noise): the same part either way.
+        Chunks whose weights are all zero (pairs dropped by ``min_fraction``)
+        are always computed here.
+        """
+        import ray
+        from ray.exceptions import GetTimeoutError, RayError, RayTaskError
+
+        chunk = self._config.chunk_size
+        refs = {}
+        for index in range(self._config.num_chunks):
+            worker = owners.get(index)
+            chunk_weights = weights[index * chunk:(index + 1) * chunk]
+            if worker is not None and worker in self._workers and chunk_weights.any():
+                refs[index] = worker.actor.gradient_part.remote(seed, index * chunk, chunk_weights)
+        parts: dict[int, np.ndarray] = {}
+        deadline = time.time() + self._options.chunk_timeout_s
+        for index, ref in refs.items():
+            try:
+                parts[index] = ray.get(ref, timeout=max(0.0, deadline - time.time()))
+            except RayTaskError as error:
+                raise TrainingError(f"a worker failed computing chunk {index}'s gradient part: {error}") from None
+            except (RayError, GetTimeoutError):
+                pass  # the worker died or is slow: the part is computed here
+        local = [index for index in range(self._config.num_chunks) if index not in parts]
+        return [parts[index] if index in parts else compute_here(index)
+                for index in range(self._config.num_chunks)], len(local)

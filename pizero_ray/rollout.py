@@ -103,8 +103,12 @@ def record_episodes(params: Params, config: Config, env: Environment, key: jax.A
     return Trajectory(initial_states, states, actions, rewards, dones, scores)
 
 
-def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
-    """jit(theta [D], iteration_seed uint32, pair_indices [C]) -> scores [C, 2] (+z, -z)."""
+def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams, with_noise: bool = False):
+    """jit(theta [D], iteration_seed uint32, pair_indices [C]) -> scores [C, 2] (+z, -z).
+
+    ``with_noise``: (scores, the pairs' noise [C, noise_size]), which a worker
+    keeps to compute the chunk's share of the gradient without regenerating it.
+    """
 
     def member_score(theta: jax.Array, episode_key: jax.Array) -> jax.Array:
         return jnp.mean(run_episodes(layout.unravel(theta), config, env, episode_key, config.trials))
@@ -118,13 +122,16 @@ def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
         episode_key = es.pair_episode_key(key, pair_index)  # both halves see the same episodes
         if layout.perturbation.rank > 0:
             steps = jnp.array([config.sigma, -config.sigma], jnp.float32)
-            return jax.vmap(low_rank_member_score, in_axes=(None, None, 0, None))(theta, noise, steps, episode_key)
-        members = jnp.stack([theta + config.sigma * noise, theta - config.sigma * noise])
-        return jax.vmap(member_score, in_axes=(0, None))(members, episode_key)
+            scores = jax.vmap(low_rank_member_score, in_axes=(None, None, 0, None))(theta, noise, steps, episode_key)
+        else:
+            members = jnp.stack([theta + config.sigma * noise, theta - config.sigma * noise])
+            scores = jax.vmap(member_score, in_axes=(0, None))(members, episode_key)
+        return scores, noise
 
-    def evaluate(theta: jax.Array, iteration_seed: jax.Array, pair_indices: jax.Array) -> jax.Array:
+    def evaluate(theta: jax.Array, iteration_seed: jax.Array, pair_indices: jax.Array):
         key = es.iteration_key(iteration_seed)
-        return jax.vmap(pair_scores, in_axes=(None, None, 0))(theta, key, pair_indices)
+        scores, noise = jax.vmap(pair_scores, in_axes=(None, None, 0))(theta, key, pair_indices)
+        return (scores, noise) if with_noise else scores
 
     return jax.jit(evaluate)
 

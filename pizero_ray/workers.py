@@ -53,6 +53,10 @@ class RolloutWorker:
     def evaluate_chunk(self, theta: np.ndarray, iteration_seed: int, first_pair: int) -> np.ndarray:
         return self._chunks.evaluate(theta, iteration_seed, first_pair)
 
+    def gradient_part(self, iteration_seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
+        """The chunk's share of the pseudo-gradient, from the noise kept while evaluating it."""
+        return self._chunks.gradient_part(iteration_seed, first_pair, weights)
+
 
 def start_worker(
     config_json: str, num_cpus: float, num_gpus: float, compile_cache_dir: str | None, resources: dict | None = None,

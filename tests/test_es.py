@@ -75,9 +75,9 @@ def test_adam_ascent_steps_climb_the_quadratic(shaping, rank):
     size = perturbation.parameter_size
     config = build_config("tiny", population=64, chunk_size=16, sigma=0.05, learning_rate=0.05, fitness_shaping=shaping,
                           perturbation_rank=rank)
-    optimizer, update = es.make_update(config, perturbation)
+    update = es.make_update(config, perturbation)
     theta = jnp.zeros(size)
-    state = optimizer.init(theta)
+    state = update.optimizer.init(theta)
     target = np.linspace(-1, 1, size).astype(np.float32)
     start = np.sum(target**2)
     for iteration in range(30):
@@ -123,3 +123,21 @@ def test_dropped_pairs_take_no_rank_and_no_weight():
     assert float(weights[1]) == 0.0
     # the remaining four scores rank 0..3 exactly as if the dropped pair never existed
     np.testing.assert_allclose(weights[jnp.array([0, 2])], es.pair_weights(scores[jnp.array([0, 2])], "centered_ranks"))
+
+
+@pytest.mark.parametrize("rank", [0, 2])
+def test_update_in_chunk_parts_matches_the_one_function_gradient(rank):
+    shapes = ((6, 5), (5,)) if rank else ((30,),)
+    perturbation = es.Perturbation(shapes, rank)
+    config = build_config("tiny", population=12, chunk_size=4, sigma=0.1, fitness_shaping="none",
+                          perturbation_rank=rank)
+    update = es.make_update(config, perturbation)
+    scores = jnp.asarray(np.random.default_rng(0).normal(size=(12, 2)), jnp.float32)
+    valid = jnp.array([True] * 4 + [False] * 4 + [True] * 4)  # the middle chunk was dropped
+    weights, num_pairs = update.weights(scores, valid)
+    weights = np.asarray(weights)
+    parts = [update.part_here(7, weights, index) for index in range(3)]
+    np.testing.assert_array_equal(parts[1], np.zeros(perturbation.parameter_size))
+    reference = es.pseudo_gradient(es.iteration_key(7), jnp.asarray(weights), 0.1, perturbation, 4, num_pairs)
+    gradient = es.GradientParts.total(parts) / (2 * 0.1 * int(num_pairs))
+    np.testing.assert_allclose(gradient, reference, rtol=1e-5, atol=1e-6)

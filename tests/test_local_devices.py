@@ -46,6 +46,18 @@ def test_chunks_dealt_over_both_devices_score_as_on_one(chunks, theta_and_refere
         assert got.dtype == np.float32 and got.shape == (CONFIG.chunk_size, 2)
 
 
+def test_a_chunks_gradient_part_from_kept_noise_equals_the_regenerated_one(chunks, theta_and_reference):
+    theta, _ = theta_and_reference
+    weights = np.linspace(-1, 1, CONFIG.chunk_size).astype(np.float32)
+    chunks.evaluate(theta, SEED, 2)  # keeps the chunk's noise
+    kept = chunks.gradient_part(SEED, 2, weights)
+    regenerated = chunks.gradient_part(SEED, 2, weights)  # the noise was used up: regenerated
+    assert kept.shape == (chunks.parameters,) and np.abs(kept).sum() > 0
+    np.testing.assert_array_equal(kept, regenerated)
+    chunks.evaluate(theta, SEED + 1, 2)  # a new iteration's chunk replaces the old noise
+    assert not np.array_equal(chunks.gradient_part(SEED + 1, 2, weights), kept)
+
+
 def test_concurrent_calls_each_borrow_a_device_and_score_as_on_one(chunks, theta_and_reference):
     theta, reference = theta_and_reference
     for _ in range(2):  # a device not given back would leave the second round waiting

@@ -79,3 +79,28 @@ def test_resume_continues_exactly(ray_session, tmp_path, compile_cache_dir):
     resumed = driver.train(path, config, options)
     assert resumed["parameter_hash"] == straight["parameter_hash"]
     assert [row["iteration"] for row in run_dir.read_metrics(path)] == [0, 1, 2, 3]
+
+
+def test_gradient_parts_from_workers_equal_the_update_in_one_process(ray_session, tmp_path, compile_cache_dir):
+    """Workers return each chunk's share from the noise they kept; the driver's own path regenerates it."""
+    import jax.numpy as jnp
+
+    import envs
+    from pizero_ray import es, rollout
+
+    trained = _train(tmp_path / "run", 2, 2, compile_cache_dir)
+    config = build_config("tiny")
+    env = envs.make(config.env, **config.env_kwargs())
+    theta, layout = rollout.flat_params(config, env)
+    evaluate = rollout.make_pair_evaluator(config, env, layout, with_noise=True)
+    update = es.make_update(config, layout.perturbation)
+    state = update.optimizer.init(theta)
+    for iteration in range(2):
+        seed = es.iteration_seed(config.seed, iteration)
+        scores = np.concatenate([
+            np.asarray(evaluate(theta, np.uint32(seed), jnp.arange(first, first + config.chunk_size))[0])
+            for first in range(0, config.population, config.chunk_size)])
+        theta, state, _ = update(theta, state, seed, jnp.asarray(scores), jnp.ones(config.population, bool))
+    assert driver.parameter_hash(np.asarray(theta)) == trained["parameter_hash"]
+    rows = run_dir.read_metrics(tmp_path / "run")
+    assert [row["gradient_parts_on_driver"] for row in rows[1:]] == [0, 0]  # every part came from a worker
