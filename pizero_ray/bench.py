@@ -14,8 +14,9 @@ default) and ``low_rank`` (the opt-in ``perturbation_rank`` 1, EGGROLL-style):
   - the same work through the Ray trainer with 1 and 2 workers sharing the
     same cores: iteration time, and its ratio to the in-process rollout
     (distributed efficiency);
-  - the driver's update (noise regeneration + gradient + Adam) as a share of
-    the iteration;
+  - the driver's update (weights, gradient parts from the workers, Adam) as a
+    share of the trainer's iteration, and the update made entirely in the
+    driver (regenerating every chunk's noise);
   - bytes per iteration each way;
   - a new worker's time from start to first result, cold and with the
     persistent compilation cache;
@@ -166,7 +167,11 @@ def planner_sweep(plan: BenchPlan, progress=print, devices: int = 1) -> list[dic
 
 
 def driver_update(config: Config, repeats: int) -> float:
-    """Seconds for one update (noise regeneration + gradient + Adam) at this population."""
+    """Seconds for one update made entirely in the driver (every chunk's noise regenerated, gradient, Adam).
+
+    That is the driver's fallback; in the trainer the workers return the parts
+    from the noise they kept (``trainer_update_s``).
+    """
     import jax
     import jax.numpy as jnp
 
@@ -235,13 +240,21 @@ def worker_memory(config: Config, cache_dir: str) -> float:
 
 
 def traffic(config: Config, parameters: int) -> dict:
-    """Bytes per iteration: parameters once per node out, 8 bytes per pair (plus framing) back."""
-    chunk_result = np.zeros((config.chunk_size, 2), np.float32)
-    framed = len(pickle.dumps(chunk_result, protocol=5))
+    """Bytes per iteration, each way.
+
+    Out: the parameters once per node, then each chunk's weights (4 bytes per
+    pair). Back: each chunk's scores (8 bytes per pair) and its share of the
+    gradient (one parameter vector per chunk). Framing is pickle's, as Ray's.
+    """
+    def framed(shape) -> int:
+        return len(pickle.dumps(np.zeros(shape, np.float32), protocol=5))
+
+    chunks = config.num_chunks
     return {
         "driver_to_workers_bytes_per_node": parameters * 4,
-        "workers_to_driver_bytes": config.num_chunks * framed,
-        "workers_to_driver_payload_bytes": config.population * 8,
+        "driver_to_workers_weights_bytes": chunks * framed((config.chunk_size,)),
+        "workers_to_driver_bytes": chunks * (framed((config.chunk_size, 2)) + framed((parameters,))),
+        "workers_to_driver_payload_bytes": config.population * 8 + chunks * parameters * 4,
     }
 
 
@@ -270,7 +283,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
     straightforward = main.pop("straightforward", None)
     update_s, sweeps = {}, {"simulations": [], "population": []}
     for mode, (rank, chunk) in modes.items():
-        progress(f"driver update ({mode})")
+        progress(f"driver update, regenerating every chunk ({mode})")
         update_s[mode] = driver_update(configs[mode], plan.repeats)
         if mode not in plan.sweep_modes:
             continue
@@ -325,7 +338,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
             f"rollout_simulations_per_s{suffix}": main[mode]["simulations_per_s"],
             f"rollout_iteration_s{suffix}": main[mode]["iteration_s"],
             f"compile_s{suffix}": main[mode]["compile_s"],
-            f"driver_update_s{suffix}": update_s[mode],
+            f"driver_update_regenerating_s{suffix}": update_s[mode],
         })
         if f"{mode}_one_device" in main:
             result[f"rollout_agent_steps_per_s{suffix}_one_device"] = main[f"{mode}_one_device"]["agent_steps_per_s"]
@@ -344,6 +357,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
             efficiency = main[mode]["iteration_s"] / run["iteration_s"]
             if workers == 2:
                 result[f"distributed_efficiency{suffix}"] = efficiency
+                result[f"trainer_update_s{suffix}"] = run["update_s"]
                 result[f"driver_update_share{suffix}"] = run["update_s"] / run["iteration_s"]
             else:
                 result[f"distributed_efficiency_1_worker{suffix}"] = efficiency

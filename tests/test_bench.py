@@ -22,12 +22,13 @@ def test_rollouts_can_keep_a_config_to_one_device():
     assert (results["all"]["devices"], results["one"]["devices"]) == (2, 1)
 
 
-def test_traffic_is_parameters_out_and_eight_bytes_per_pair_back():
+def test_traffic_is_parameters_and_weights_out_scores_and_gradient_parts_back():
     config = build_config("tiny", population=8, chunk_size=4)
     result = bench.traffic(config, parameters=1000)
     assert result["driver_to_workers_bytes_per_node"] == 4000
-    assert result["workers_to_driver_payload_bytes"] == 64
-    assert result["workers_to_driver_bytes"] > 64  # plus framing, two chunks
+    assert result["driver_to_workers_weights_bytes"] > 2 * 16  # two chunks of four float32 weights, framed
+    assert result["workers_to_driver_payload_bytes"] == 64 + 2 * 4000  # scores, and a part per chunk
+    assert result["workers_to_driver_bytes"] > 64 + 2 * 4000  # plus framing
 
 
 def test_bench_config_is_the_papers_agent():
