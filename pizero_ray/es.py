@@ -194,7 +194,8 @@ class GradientParts(NamedTuple):
     chunk_size: int
 
     def regenerated(self, seed, first_pair: int, weights: np.ndarray) -> np.ndarray:
-        return np.asarray(self.part(weights, self.noise(np.uint32(seed), np.int32(first_pair))), np.float32)
+        noise = self.noise(np.uint32(seed), np.int32(first_pair))
+        return np.asarray(self.part(np.asarray(weights, np.float32), noise), np.float32)
 
     @staticmethod
     def total(parts) -> np.ndarray:

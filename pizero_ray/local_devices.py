@@ -1,13 +1,16 @@
-"""Every local device at once: one compiled pair evaluator per device, a chunk in flight on each.
+"""A worker's local compute: every device at once, the noise it kept, the cores it holds.
 
 XLA's CPU backend runs the rollout's many small operations (the search's
 while loops, member-sized products) on one thread, so a process with one CPU
-device leaves its other cores mostly idle. A process with N cores therefore
+device leaves its other cores partly idle. A process with N cores therefore
 asks JAX for N CPU devices (``configure_cpu_devices``) and runs whole chunks
-on all of them concurrently. Each device runs the same single-device program
-on a whole chunk, so a chunk's scores do not depend on which device, or how
-many, computed it: the trainer stays deterministic whatever its workers'
-sizes. On a GPU node the devices are the GPUs the process may see.
+on all of them concurrently (``ChunkEvaluator``). Each device runs the same
+single-device program on a whole chunk, so a chunk's scores do not depend on
+which device, or how many, computed it: the trainer stays deterministic
+whatever its workers' sizes. On a GPU node the devices are the GPUs the
+process may see. The evaluator keeps each chunk's noise for the chunk's share
+of the gradient, and ``CoreClaim`` keeps worker processes off each other's
+cores.
 """
 
 from __future__ import annotations
@@ -96,7 +99,8 @@ class ChunkEvaluator:
     """The population rollout compiled for each local device: ``evaluate`` one chunk, or ``evaluate_all``.
 
     ``evaluate`` may be called from several threads at once (a threaded Ray
-    actor): each call borrows a free device for the chunk's duration.
+    actor): each call borrows a free device for the chunk's duration, and
+    keeps the chunk's noise for ``gradient_part``.
     """
 
     def __init__(self, config: Config, max_devices: int | None = None):

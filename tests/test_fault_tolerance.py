@@ -82,3 +82,35 @@ def test_chaos_command_reports_identical_hashes(tmp_path, compile_cache_dir, cap
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert code == 0 and report["identical"] and report["workers_killed"] == 2
     assert report["clean_parameter_hash"] == report["chaos_parameter_hash"]
+
+
+def test_gradient_parts_of_a_dead_worker_are_computed_by_the_driver(ray_session, compile_cache_dir):
+    import functools
+
+    import numpy as np
+
+    import envs
+    from pizero_ray import es, rollout
+    from pizero_ray.pool import PoolOptions, WorkerPool
+
+    theta, layout = rollout.flat_params(CONFIG, envs.make(CONFIG.env))
+    update = es.make_update(CONFIG, layout.perturbation)
+    seed = es.iteration_seed(CONFIG.seed, 0)
+    pool = WorkerPool(CONFIG, PoolOptions(max_workers=1, compile_cache=compile_cache_dir))
+    try:
+        theta_ref = ray_session.put(np.asarray(theta))
+        result = pool.evaluate(theta_ref, seed)
+        weights = np.asarray(update.weights(result.scores, result.valid)[0])
+        compute_here = functools.partial(update.part_here, seed, weights)
+        from_worker, computed_here = pool.gradient_parts(seed, weights, result.owners, compute_here)
+        assert computed_here == 0  # the worker kept every chunk's noise
+
+        result = pool.evaluate(theta_ref, seed)  # again, then the worker dies before the parts are asked for
+        (worker,) = set(result.owners.values())
+        ray_session.kill(worker.actor, no_restart=True)
+        from_driver, computed_here = pool.gradient_parts(seed, weights, result.owners, compute_here)
+        assert computed_here == CONFIG.num_chunks
+        for a, b in zip(from_worker, from_driver):
+            np.testing.assert_array_equal(a, b)
+    finally:
+        pool.shutdown()
