@@ -240,7 +240,7 @@ class WorkerPool:
         """Every chunk's share of the pseudo-gradient, in chunk order, and how many were computed here.
 
         The worker that evaluated a chunk still holds its noise and returns the
-        part in about a millisecond; a chunk whose worker is gone, fails or
+        part without regenerating it; a chunk whose worker is gone, fails or
         does not answer within the chunk timeout is computed by
         ``compute_here`` (regenerating its noise): the same part either way.
         Chunks whose weights are all zero (pairs dropped by ``min_fraction``)
