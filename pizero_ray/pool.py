@@ -265,6 +265,5 @@ class WorkerPool:
                 raise TrainingError(f"a worker failed computing chunk {index}'s gradient part: {error}") from None
             except (RayError, GetTimeoutError):
                 pass  # the worker died or is slow: the part is computed here
-        local = [index for index in range(self._config.num_chunks) if index not in parts]
         return [parts[index] if index in parts else compute_here(index)
-                for index in range(self._config.num_chunks)], len(local)
+                for index in range(self._config.num_chunks)], self._config.num_chunks - len(parts)

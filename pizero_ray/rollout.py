@@ -4,7 +4,8 @@
 indices it regenerates each pair's noise from (iteration seed, pair index),
 plays the same episodes with theta + sigma z and theta - sigma z, and returns
 their mean scores. Nothing but the flat parameters, a seed and indices goes in;
-scores [C, 2] come out.
+scores [C, 2] come out, and for a worker also the chunk's noise, which it keeps
+for the chunk's share of the gradient.
 """
 
 from __future__ import annotations
