@@ -108,9 +108,27 @@ def test_gradient_parts_of_a_dead_worker_are_computed_by_the_driver(ray_session,
         result = pool.evaluate(theta_ref, seed)  # again, then the worker dies before the parts are asked for
         (worker,) = {id(owner): owner for owner in result.owners.values()}.values()  # the pool's one worker
         ray_session.kill(worker.actor, no_restart=True)
+        _wait_until_dead(ray_session, worker.actor)  # kill is asynchronous: a queued call could still be served
         from_driver, computed_here = pool.gradient_parts(seed, weights, result.owners, compute_here)
         assert computed_here == CONFIG.num_chunks
         for a, b in zip(from_worker, from_driver):
             np.testing.assert_array_equal(a, b)
     finally:
         pool.shutdown()
+
+
+def _wait_until_dead(ray, actor, timeout_s: float = 30.0) -> None:
+    import time
+
+    from ray.exceptions import GetTimeoutError, RayActorError
+
+    deadline = time.time() + timeout_s
+    while time.time() < deadline:
+        try:
+            ray.get(actor.ready.remote(), timeout=5)
+        except RayActorError:
+            return
+        except GetTimeoutError:
+            pass
+        time.sleep(0.05)
+    raise AssertionError(f"the killed actor still answers after {timeout_s} s")
