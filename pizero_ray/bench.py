@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import json
 import pickle
-import resource
 import statistics
 import tempfile
 import time
@@ -83,10 +82,6 @@ def bench_config(population: int, chunk_size: int, simulations: int = 10, pertur
         hidden_size=64, latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=simulations,
         root_noise=root_noise, planner=planner,
     )
-
-
-def _peak_rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 @dataclass(frozen=True)
@@ -260,7 +255,7 @@ def traffic(config: Config, parameters: int) -> dict:
 def run(plan: BenchPlan, progress=print) -> dict:
     import jax
 
-    from pizero_ray import ray_setup
+    from pizero_ray import local_devices, ray_setup
 
     ray_setup.init(None)  # before JAX starts its threads
     devices = len(jax.local_devices())
@@ -361,7 +356,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
             else:
                 result[f"distributed_efficiency_1_worker{suffix}"] = efficiency
     result.update({
-        "peak_rss_mb": _peak_rss_mb(),
+        "peak_rss_mb": local_devices.peak_rss_mb(),
         "worker_peak_rss_mb": worker_rss["exact"],
         **({"worker_peak_rss_mb_low_rank": worker_rss["low_rank"]} if "low_rank" in worker_rss else {}),
         "worker_first_result_s_cold": trainers["exact", plan.exact_trainer_workers[0]]["worker_first_result_s"],

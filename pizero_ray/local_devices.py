@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import queue
+import resource
 import tempfile
 import threading
 from pathlib import Path
@@ -37,6 +38,11 @@ def configure_cpu_devices(count: int) -> None:
     import jax
 
     jax.config.update("jax_num_cpu_devices", max(1, int(count)))
+
+
+def peak_rss_mb() -> float:
+    """This process's peak resident memory (Linux reports ``ru_maxrss`` in KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def cpu_count() -> int:

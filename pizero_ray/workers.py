@@ -13,11 +13,12 @@ gave it the same way.
 from __future__ import annotations
 
 import os
-import resource
 import time
 
 import numpy as np
 import ray
+
+from pizero_ray import local_devices
 
 
 class RolloutWorker:
@@ -25,7 +26,7 @@ class RolloutWorker:
 
     def __init__(self, config_json: str, compile_cache_dir: str | None, cpu_devices: int = 1, pin_cores: bool = False):
         started = time.time()
-        from pizero_ray import compile_cache, local_devices
+        from pizero_ray import compile_cache
 
         self._cores = local_devices.CoreClaim.claim(cpu_devices) if pin_cores else local_devices.CoreClaim((), [])
         local_devices.configure_cpu_devices(cpu_devices)  # before JAX's first computation
@@ -48,7 +49,7 @@ class RolloutWorker:
 
     def peak_rss_mb(self) -> float:
         """This worker process's peak resident memory (for `pizero bench`)."""
-        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+        return local_devices.peak_rss_mb()
 
     def evaluate_chunk(self, theta: np.ndarray, iteration_seed: int, first_pair: int) -> np.ndarray:
         return self._chunks.evaluate(theta, iteration_seed, first_pair)
