@@ -193,9 +193,12 @@ class GradientParts(NamedTuple):
     part: object  # jit(weights [C], noise [C, noise_size]) -> [D]
     chunk_size: int
 
-    def regenerated(self, seed, first_pair: int, weights: np.ndarray) -> np.ndarray:
-        noise = self.noise(np.uint32(seed), np.int32(first_pair))
+    def from_noise(self, weights: np.ndarray, noise) -> np.ndarray:
+        """The part of a chunk whose noise is at hand (kept from its evaluation, or regenerated)."""
         return np.asarray(self.part(np.asarray(weights, np.float32), noise), np.float32)
+
+    def regenerated(self, seed, first_pair: int, weights: np.ndarray) -> np.ndarray:
+        return self.from_noise(weights, self.noise(np.uint32(seed), np.int32(first_pair)))
 
     @staticmethod
     def total(parts) -> np.ndarray:

@@ -199,7 +199,7 @@ class ChunkEvaluator:
             noise = self._noise.pop(first_pair, None) if seed == self._noise_seed else None
         if noise is None:
             return self._parts.regenerated(seed, first_pair, weights)
-        return np.asarray(self._parts.part(np.asarray(weights, np.float32), noise), np.float32)
+        return self._parts.from_noise(weights, noise)
 
     def evaluate_all(self, theta: np.ndarray, seed: int, first_pairs: Sequence[int]) -> list[np.ndarray]:
         """Many chunks, dealt round-robin over the devices and run concurrently (one thread)."""
