@@ -1,11 +1,13 @@
-"""`ray job submit` against a `ray start --head` instance runs a training to completion."""
+"""`ray job submit` against a `ray start --head` instance, and the README's cluster walkthrough, with HOME empty."""
 
 import json
 import os
+import secrets
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -24,15 +26,19 @@ def _free_port() -> int:
 @pytest.fixture
 def head_node():
     """A separate Ray head (GCS, dashboard, job server) of its own, stopped by signalling its process group."""
-    import tempfile
-
     temp_dir = tempfile.mkdtemp(prefix="rj", dir="/tmp")  # short: Ray's socket paths must fit in 107 bytes
     gcs_port, dashboard_port = _free_port(), _free_port()
+    # This head's own token, made here: nothing may come from an earlier run's ~/.ray (HOME is empty).
+    token_path = Path(temp_dir) / "auth_token"
+    token_path.write_text(secrets.token_hex(32))
+    home = Path(temp_dir) / "home"
+    home.mkdir()
     env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}", "RAY_USAGE_STATS_ENABLED": "0",
-           "JAX_PLATFORMS": "cpu",
-           # Clients of a token-authenticated cluster (`ray job ...`) send ~/.ray/auth_token only in token mode.
+           "JAX_PLATFORMS": "cpu", "HOME": str(home), "RAY_AUTH_TOKEN_PATH": str(token_path),
+           # Clients of a token-authenticated cluster (`ray job ...`) send their token only in token mode.
            "RAY_AUTH_MODE": "token"}
-    env.pop("RAY_ADDRESS", None)
+    for name in ("RAY_ADDRESS", "RAY_AUTH_TOKEN"):
+        env.pop(name, None)
     head = subprocess.Popen(
         [str(BIN / "ray"), "start", "--head", "--block", f"--port={gcs_port}", "--num-cpus=2",
          "--object-store-memory=100000000", "--include-dashboard=true", "--dashboard-host=127.0.0.1",
@@ -84,3 +90,36 @@ def test_job_submit_runs_a_training(head_node, tmp_path, compile_cache_dir):
     inspect = subprocess.run([str(BIN / "pizero"), "inspect", str(run_dir), "--json"], env=env,
                              capture_output=True, text=True, check=True)
     assert json.loads(inspect.stdout)["iteration"] == 2
+
+
+@pytest.mark.slow
+def test_the_readme_cluster_walkthrough_works_with_an_empty_home(tmp_path):
+    """`cluster/local-cluster.sh start`, `cluster/submit-example.sh`, `stop`, as the README has them, HOME empty.
+
+    The start script must make the token the cluster needs; nothing may come
+    from an earlier run's ~/.ray or compile cache.
+    """
+    home = tmp_path / "home"
+    home.mkdir()
+    temp_dir = tempfile.mkdtemp(prefix="lc", dir="/tmp")  # short: Ray's socket paths must fit in 107 bytes
+    ports = ("PIZERO_RAY_PORT", "PIZERO_DASHBOARD_PORT", "PIZERO_CLIENT_PORT", "PIZERO_HEAD_AGENT_PORT",
+             "PIZERO_WORKER_AGENT_PORT")
+    env = {**os.environ, "HOME": str(home), "PIZERO_RAY_TEMP_DIR": temp_dir, "JAX_PLATFORMS": "cpu",
+           **{name: str(_free_port()) for name in ports}}
+    for name in ("RAY_ADDRESS", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH", "RAY_AUTH_MODE"):
+        env.pop(name, None)
+    script = REPO / "cluster" / "local-cluster.sh"
+    try:
+        start = subprocess.run(["bash", str(script), "start"], env=env, capture_output=True, text=True, timeout=300)
+        assert start.returncode == 0, start.stdout + start.stderr
+        assert (home / ".ray" / "auth_token").is_file()  # made by the script, in the empty HOME
+        run_dir = tmp_path / "example"
+        example = subprocess.run(["bash", str(REPO / "cluster" / "submit-example.sh"), str(run_dir)], env=env,
+                                 capture_output=True, text=True, timeout=900)
+        assert example.returncode == 0, example.stdout[-3000:] + example.stderr[-3000:]
+        assert f"Done: {run_dir} holds 200 iterations." in example.stdout
+        rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+        assert [row["iteration"] for row in rows] == list(range(1, 201))
+    finally:
+        stop = subprocess.run(["bash", str(script), "stop"], env=env, capture_output=True, text=True, timeout=120)
+        assert stop.returncode == 0, stop.stdout + stop.stderr
