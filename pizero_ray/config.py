@@ -150,8 +150,17 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 
 
+def largest_divisor_at_most(number: int, limit: int) -> int:
+    """The largest divisor of ``number`` that is at most ``limit`` (1 if ``limit`` < 1)."""
+    return max((d for d in range(1, min(number, limit) + 1) if number % d == 0), default=1)
+
+
 def build_config(preset: str = "default", **overrides: Any) -> Config:
-    """Global preset, then the environment's own overrides for it, then explicit overrides."""
+    """Global preset, then the environment's own overrides for it, then explicit overrides.
+
+    Without an explicit ``chunk_size`` the chunk is the largest divisor of the
+    population not above the preset's chunk size (32 by default).
+    """
     if preset not in PRESETS:
         raise ConfigError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
     explicit = {k: v for k, v in overrides.items() if v is not None}
@@ -160,6 +169,11 @@ def build_config(preset: str = "default", **overrides: Any) -> Config:
 
     env_preset = envs.training_preset(env_name, preset) if env_name in envs.ENV_NAMES else {}
     values = {**PRESETS[preset], **env_preset, **explicit}
+    population = values.get("population", Config.population)
+    if "chunk_size" not in explicit and isinstance(population, int) and population > 0:
+        # An unchosen chunk size follows the population (24 pairs: one chunk of 24, not an error);
+        # still a pure function of the config, so the results stay independent of the workers.
+        values["chunk_size"] = largest_divisor_at_most(population, values.get("chunk_size", Config.chunk_size))
     if isinstance(values.get("env_args"), dict):
         values["env_args"] = tuple(sorted(values["env_args"].items()))
     return Config(**values).validate()
