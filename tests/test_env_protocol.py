@@ -11,6 +11,17 @@ import envs
 # Short episodes where the horizon is a parameter: these tests are about the protocol, not the game.
 SMALL = {"2048": {"horizon": 8}, "pacman": {"horizon": 8}, "pacman-po": {"horizon": 8}, "sokoban": {"num_levels": 20}}
 BATCH = 4
+# A reference solver each environment's references must report (the scale a reader judges a score on).
+REFERENCE_KEYS = {
+    "tsp": {"nearest_neighbour_tour_length", "optimal_tour_length"},
+    "collect": {"greedy_score", "random_score", "optimal_score"},
+    "flp": {"random_score"},
+    "flp-mean": {"random_score"},
+    "2048": {"random_score", "greedy_score"},
+    "pacman": {"random_score"},
+    "pacman-po": {"random_score"},
+    "sokoban": {"random_goals_covered", "random_solved_fraction"},
+}
 
 
 def _legal_actions(env, obs, t):
@@ -51,4 +62,7 @@ def test_every_environment_renders_and_has_references(name):
     state, _ = env.reset(jax.random.PRNGKey(1))
     image = env.render(jax.tree_util.tree_map(np.asarray, state))
     assert image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3 and min(image.shape[:2]) >= 64
-    assert env.references is not None
+    states, _ = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(2), BATCH))
+    references = env.references(states, np.zeros(BATCH, np.float32))
+    assert isinstance(references, dict) and REFERENCE_KEYS[name] <= set(references), references
+    assert all(isinstance(value, float) and np.isfinite(value) for value in references.values()), references

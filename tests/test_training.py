@@ -5,7 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from pizero_ray import driver, run_dir
+import envs
+from pizero_ray import driver, rollout, run_dir
 from pizero_ray.cli import main
 from pizero_ray.config import build_config
 
@@ -35,8 +36,8 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(ray_session, tmp_path,
     info = _inspect(path, capsys)
     assert info["iteration"] == 3 and info["parameter_hash"] == result["parameter_hash"]
     assert info["checkpoints"] == [2, 3]
-    initial = driver.parameter_hash(np.zeros(1))
-    assert info["parameter_hash"] != initial
+    untrained = driver.parameter_hash(np.asarray(rollout.flat_params(build_config("tiny"), envs.make("tsp"))[0]))
+    assert info["parameter_hash"] != untrained  # three updates moved the parameters
 
     assert main(["eval", str(path), "--episodes", "16", "--seed", "1", "--json"]) == 0
     evaluation = json.loads(capsys.readouterr().out)
@@ -92,13 +93,14 @@ def test_gradient_parts_from_workers_equal_the_update_in_one_process(ray_session
     config = build_config("tiny")
     env = envs.make(config.env, **config.env_kwargs())
     theta, layout = rollout.flat_params(config, env)
-    evaluate = rollout.make_pair_evaluator(config, env, layout, with_noise=True)
+    evaluate = rollout.make_pair_evaluator(config, env, layout)
     update = es.make_update(config, layout.perturbation)
     state = update.optimizer.init(theta)
     for iteration in range(2):
         seed = es.iteration_seed(config.seed, iteration)
         scores = np.concatenate([
-            np.asarray(evaluate(theta, np.uint32(seed), jnp.arange(first, first + config.chunk_size))[0])
+            np.asarray(evaluate(theta, np.uint32(seed), jnp.arange(first, first + config.chunk_size),
+                                update.parts.noise(np.uint32(seed), np.int32(first))))
             for first in range(0, config.population, config.chunk_size)])
         theta, state, _ = update(theta, state, seed, jnp.asarray(scores), jnp.ones(config.population, bool))
     assert driver.parameter_hash(np.asarray(theta)) == trained["parameter_hash"]
