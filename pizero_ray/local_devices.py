@@ -9,8 +9,8 @@ single-device program on a whole chunk, so a chunk's scores do not depend on
 which device, or how many, computed it: the trainer stays deterministic
 whatever its workers' sizes. On a GPU node the devices are the GPUs the
 process may see. The evaluator keeps each chunk's noise for the chunk's share
-of the gradient, and ``CoreClaim`` keeps worker processes off each other's
-cores.
+of the gradient (``NoiseCache``), and ``CoreClaim`` keeps worker processes off
+each other's cores.
 """
 
 from __future__ import annotations
@@ -31,6 +31,11 @@ from pizero_ray.config import Config
 # of the gradient (saving the driver its regeneration), up to this many bytes:
 # 40 pairs of the bench agent's full-rank noise take 8.7 MB.
 NOISE_CACHE_BYTES = 1 << 30
+# Iterations whose noise a worker keeps: the newest seeds it has seen. Two, so
+# that a straggler of the last iteration (dropped by min_fraction, finishing
+# late) cannot push out the current one's noise; an iteration two back is over.
+KEPT_SEEDS = 2
+SEEDS_REMEMBERED = 64  # seeds known to be old: a straggler of theirs is not mistaken for a new iteration
 
 
 def configure_cpu_devices(count: int) -> None:
@@ -101,12 +106,54 @@ class CoreClaim:
         return cls(cores, [fd for _, fd in held])
 
 
+class NoiseCache:
+    """Chunks' noise by (iteration seed, first pair), for the newest ``KEPT_SEEDS`` seeds, up to a byte cap.
+
+    A seed's noise is dropped once ``KEPT_SEEDS`` newer seeds have been seen, so
+    the noise of chunks whose parts are never asked for (stragglers, chunks
+    whose parts the driver computed itself) does not pile up; a straggler of a
+    seed already dropped (one of the last ``SEEDS_REMEMBERED`` seen) is not kept.
+    """
+
+    def __init__(self, chunk_bytes: int, max_bytes: int | None = None):
+        self._chunk_bytes = chunk_bytes
+        self._max_bytes = NOISE_CACHE_BYTES if max_bytes is None else max_bytes
+        self._lock = threading.Lock()
+        self._seeds: list[int] = []  # seeds seen, oldest first; the last KEPT_SEEDS are kept
+        self._noise: dict[tuple[int, int], object] = {}
+        self.misses = 0  # chunks asked for whose noise was not here
+
+    def keep(self, seed: int, first_pair: int, noise) -> None:
+        with self._lock:
+            if seed not in self._seeds:  # a new iteration: the oldest kept one is over
+                self._seeds = (self._seeds + [seed])[-SEEDS_REMEMBERED:]
+                kept = set(self._seeds[-KEPT_SEEDS:])
+                self._noise = {key: value for key, value in self._noise.items() if key[0] in kept}
+            if seed not in self._seeds[-KEPT_SEEDS:]:  # a straggler of an iteration that is over
+                return
+            if (len(self._noise) + 1) * self._chunk_bytes <= self._max_bytes:
+                self._noise[(seed, first_pair)] = noise
+
+    def take(self, seed: int, first_pair: int):
+        """The chunk's kept noise (given up: a part is asked for once), or None."""
+        with self._lock:
+            noise = self._noise.pop((seed, first_pair), None)
+            self.misses += noise is None
+            return noise
+
+    def __len__(self) -> int:
+        return len(self._noise)
+
+
 class ChunkEvaluator:
     """The population rollout compiled for each local device: ``evaluate`` one chunk, or ``evaluate_all``.
 
     ``evaluate`` may be called from several threads at once (a threaded Ray
     actor): each call borrows a free device for the chunk's duration, and
-    keeps the chunk's noise for ``gradient_part``.
+    keeps the chunk's noise for ``gradient_part``. The noise is made on the
+    device by ``es.GradientParts.noise``, the function that regenerates it
+    anywhere else, compiled for each device as the rollout is; the rollout
+    takes it as an input.
     """
 
     def __init__(self, config: Config, max_devices: int | None = None):
@@ -123,23 +170,24 @@ class ChunkEvaluator:
         self.parameters = layout.size
         self.agent_steps_per_pair = 2 * config.trials * env.spec.horizon
         self.devices = jax.local_devices()[:max_devices]
-        evaluate = rollout.make_pair_evaluator(config, env, layout, with_noise=True)
+        evaluate = rollout.make_pair_evaluator(config, env, layout)
         self._parts = es.gradient_parts(config, layout.perturbation)
-        self._chunk_noise_bytes = config.chunk_size * layout.perturbation.noise_size * 4
-        self._noise_lock = threading.Lock()
-        self._noise_seed: int | None = None
-        self._noise: dict[int, object] = {}  # first pair -> the chunk's noise, kept on its device
+        self._kept = NoiseCache(config.chunk_size * layout.perturbation.noise_size * 4)
 
         def compile_for(device):
             on = SingleDeviceSharding(device)
-            return evaluate.lower(
+            seed = jax.ShapeDtypeStruct((), jnp.uint32, sharding=on)
+            noise = self._parts.noise.lower(seed, jax.ShapeDtypeStruct((), jnp.int32, sharding=on)).compile()
+            scores = evaluate.lower(
                 jax.ShapeDtypeStruct(theta.shape, jnp.float32, sharding=on),
-                jax.ShapeDtypeStruct((), jnp.uint32, sharding=on),
+                seed,
                 jax.ShapeDtypeStruct((config.chunk_size,), jnp.int32, sharding=on),
+                jax.ShapeDtypeStruct((config.chunk_size, layout.perturbation.noise_size), jnp.float32, sharding=on),
             ).compile()
+            return noise, scores
 
-        # The first device's program is compiled now, so that a worker is ready
-        # as soon as it can return a chunk; the others (the same program for
+        # The first device's programs are compiled now, so that a worker is ready
+        # as soon as it can return a chunk; the others (the same programs for
         # another device: compiles side by side were no faster) follow in the
         # background and join the free list as they are done.
         self._jax = jax
@@ -168,12 +216,20 @@ class ChunkEvaluator:
     def num_devices(self) -> int:
         return len(self.devices)
 
+    @property
+    def regenerated_parts(self) -> int:
+        """Gradient parts this evaluator had to regenerate the noise for (it had not kept it)."""
+        return self._kept.misses
+
     def _dispatch(self, index: int, theta, seed: int, first_pair: int):
         """Starts one chunk on device ``index``; returns its (not yet ready) scores and noise."""
         device = self.devices[index]
         pairs = np.arange(first_pair, first_pair + self.config.chunk_size, dtype=np.int32)
         put = self._jax.device_put
-        return self._compiled[index](put(theta, device), put(np.uint32(seed), device), put(pairs, device))
+        make_noise, score = self._compiled[index]
+        seed = put(np.uint32(seed), device)
+        noise = make_noise(seed, put(np.int32(first_pair), device))
+        return score(put(theta, device), seed, put(pairs, device), noise), noise
 
     def evaluate(self, theta: np.ndarray, seed: int, first_pair: int) -> np.ndarray:
         """Scores [chunk_size, 2] of the pairs from ``first_pair`` on, on whichever device is free."""
@@ -183,20 +239,12 @@ class ChunkEvaluator:
             scores = np.asarray(scores, np.float32)
         finally:
             self._free.put(index)
-        self._keep_noise(seed, first_pair, noise)
+        self._kept.keep(seed, first_pair, noise)
         return scores
-
-    def _keep_noise(self, seed: int, first_pair: int, noise) -> None:
-        with self._noise_lock:
-            if seed != self._noise_seed:  # a new iteration: the last one's noise is of no more use
-                self._noise_seed, self._noise = seed, {}
-            if (len(self._noise) + 1) * self._chunk_noise_bytes <= NOISE_CACHE_BYTES:
-                self._noise[first_pair] = noise
 
     def gradient_part(self, seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
         """The chunk's share sum_i w_i z_i [D], from the noise kept while evaluating it, else regenerated."""
-        with self._noise_lock:
-            noise = self._noise.pop(first_pair, None) if seed == self._noise_seed else None
+        noise = self._kept.take(seed, first_pair)
         if noise is None:
             return self._parts.regenerated(seed, first_pair, weights)
         return self._parts.from_noise(weights, noise)

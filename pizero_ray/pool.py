@@ -5,7 +5,8 @@ preemption) or hangs past its deadline goes back on the queue and runs
 elsewhere; the pool keeps asking Ray for ``max_workers`` actors, so replacements
 and actors on newly joined nodes start as soon as the cluster has room (which is
 also the demand an autoscaler sees). Only workers that finished compiling get
-chunks. Every wait has a timeout.
+chunks. Every wait has a timeout, and looks at the driver's stop request at
+least every ``POLL_S``.
 """
 
 from __future__ import annotations
@@ -76,7 +77,7 @@ class WorkerPool:
         self._options = options
         self._config_json = config.to_json()
         self._workers: list[_Worker] = []
-        self._stale: dict = {}  # refs of chunks dropped by min_fraction -> their worker
+        self._stale: dict = {}  # refs of chunks dropped by min_fraction -> (their worker, deadline)
         self._startup_failures = 0
         self._last_ready_time = time.time()
         self.kills = 0
@@ -112,6 +113,38 @@ class WorkerPool:
                 self._options.compile_cache, dict(self._options.worker_resources), self._options.pin_cores,
             )
             self._workers.append(_Worker(actor, time.time(), ready_ref=actor.ready.remote()))
+
+    def _started(self, worker: _Worker, ready_ref) -> None:
+        """A starting worker's ``ready`` call is done: the worker takes chunks from now on, or it died starting."""
+        import ray
+        from ray.exceptions import GetTimeoutError, RayError
+
+        try:
+            worker.info = ray.get(ready_ref, timeout=POLL_S)
+        except GetTimeoutError:
+            return
+        except RayError as error:
+            self._drop(worker, kill=False)
+            self._startup_failures += 1
+            if self._startup_failures >= MAX_STARTUP_FAILURES:
+                raise TrainingError(f"workers keep dying while starting: {error}") from None
+            return
+        worker.ready = True
+        self._startup_failures = 0
+        self._last_ready_time = time.time()
+
+    def _expire_stale(self, now: float) -> None:
+        """A worker still on a chunk dropped by min_fraction past its deadline is hung: kill it (top_up replaces it)."""
+        import ray
+
+        expired = [ref for ref, (_, deadline) in self._stale.items() if now > deadline]
+        if expired:  # a result that is in but not yet collected (one per ray.wait) is no hang
+            done, _ = ray.wait(expired, num_returns=len(expired), timeout=0, fetch_local=False)
+            for ref in set(expired) - set(done):
+                self._drop(self._stale[ref][0], kill=True)
+        for ref, (worker, _) in list(self._stale.items()):
+            if worker not in self._workers:  # gone (killed above, or died): nothing to wait for
+                del self._stale[ref]
 
     def _drop(self, worker: _Worker, kill: bool) -> None:
         import ray
@@ -176,22 +209,9 @@ class WorkerPool:
             ready_refs, _ = ray.wait(waitable, num_returns=1, timeout=POLL_S) if waitable else ([], [])
             for ref in ready_refs:
                 if ref in starting:
-                    worker = starting[ref]
-                    try:
-                        worker.info = ray.get(ref, timeout=POLL_S)
-                        worker.ready = True
-                        self._startup_failures = 0
-                        self._last_ready_time = time.time()
-                    except GetTimeoutError:
-                        pass
-                    except RayError as error:
-                        self._drop(worker, kill=False)
-                        self._startup_failures += 1
-                        if self._startup_failures >= MAX_STARTUP_FAILURES:
-                            raise TrainingError(f"workers keep dying while starting: {error}") from None
+                    self._started(starting[ref], ref)
                 elif ref in self._stale:
-                    worker = self._stale.pop(ref)
-                    worker.in_flight -= 1
+                    self._stale.pop(ref)[0].in_flight -= 1
                 else:
                     index, worker, _ = in_flight.pop(ref)
                     worker.in_flight -= 1
@@ -209,6 +229,7 @@ class WorkerPool:
                         worker.first_result_s = time.time() - worker.created
                         first_results.append(worker.first_result_s)
             now = time.time()
+            self._expire_stale(now)
             for ref, (index, worker, deadline) in list(in_flight.items()):
                 if now > deadline:  # a hung worker: kill it, run the chunk elsewhere
                     del in_flight[ref]
@@ -224,9 +245,9 @@ class WorkerPool:
                     f"(asking for {self._options.cpus_per_worker} CPU / {self._options.gpus_per_worker} GPU each; "
                     f"cluster has {ray.available_resources()} available)"
                 )
-        # min_fraction: stragglers finish in the background and are ignored.
-        for ref, (_, worker, _) in in_flight.items():
-            self._stale[ref] = worker
+        # min_fraction: stragglers finish in the background and are ignored, by their deadlines.
+        for ref, (_, worker, deadline) in in_flight.items():
+            self._stale[ref] = (worker, deadline)
         scores = np.zeros((self._config.population, 2), np.float32)
         valid = np.zeros((self._config.population,), bool)
         for index, chunk_scores in results.items():
@@ -235,7 +256,8 @@ class WorkerPool:
         return IterationResult(scores, valid, requeued, first_results, sorted(nodes), owners)
 
     def gradient_parts(
-        self, seed: int, weights: np.ndarray, owners: dict, compute_here: Callable[[int], np.ndarray]
+        self, seed: int, weights: np.ndarray, owners: dict, compute_here: Callable[[int], np.ndarray],
+        should_stop: Callable[[], bool] = lambda: False,
     ) -> tuple[list[np.ndarray], int]:
         """Every chunk's share of the pseudo-gradient, in chunk order, and how many were computed here.
 
@@ -244,26 +266,50 @@ class WorkerPool:
         does not answer within the chunk timeout is computed by
         ``compute_here`` (regenerating its noise): the same part either way.
         Chunks whose weights are all zero (pairs dropped by ``min_fraction``)
-        are always computed here.
+        are always computed here. ``should_stop`` is looked at every POLL_S
+        and before each part computed here: a stop raises ``Interrupted``.
         """
-        import ray
-        from ray.exceptions import GetTimeoutError, RayError, RayTaskError
+        parts = self._collect_parts(self._ask_for_parts(seed, weights, owners), should_stop)
+        from_workers = len(parts)
+        for index in range(self._config.num_chunks):
+            if index not in parts:
+                if should_stop():
+                    raise Interrupted()
+                parts[index] = compute_here(index)
+        return [parts[index] for index in range(self._config.num_chunks)], self._config.num_chunks - from_workers
 
+    def _ask_for_parts(self, seed: int, weights: np.ndarray, owners: dict) -> dict:
+        """Asks each chunk's owner, if still in the pool, for the chunk's part: {ref: chunk index}."""
         chunk = self._config.chunk_size
-        refs = {}
+        asked = {}
         for index in range(self._config.num_chunks):
             worker = owners.get(index)
             chunk_weights = weights[index * chunk:(index + 1) * chunk]
             if worker is not None and worker in self._workers and chunk_weights.any():
-                refs[index] = worker.actor.gradient_part.remote(seed, index * chunk, chunk_weights)
+                asked[worker.actor.gradient_part.remote(seed, index * chunk, chunk_weights)] = index
+        return asked
+
+    def _collect_parts(self, asked: dict, should_stop: Callable[[], bool]) -> dict[int, np.ndarray]:
+        """The parts that come back within the chunk timeout: {chunk index: part}; the rest are left out."""
+        import ray
+        from ray.exceptions import GetTimeoutError, RayError, RayTaskError
+
         parts: dict[int, np.ndarray] = {}
+        waiting = dict(asked)
         deadline = time.time() + self._options.chunk_timeout_s
-        for index, ref in refs.items():
-            try:
-                parts[index] = ray.get(ref, timeout=max(0.0, deadline - time.time()))
-            except RayTaskError as error:
-                raise TrainingError(f"a worker failed computing chunk {index}'s gradient part: {error}") from None
-            except (RayError, GetTimeoutError):
-                pass  # the worker died or is slow: the part is computed here
-        return [parts[index] if index in parts else compute_here(index)
-                for index in range(self._config.num_chunks)], self._config.num_chunks - len(parts)
+        while waiting:
+            if should_stop():
+                raise Interrupted()
+            left = deadline - time.time()
+            if left <= 0:
+                break  # slow workers: their parts are computed here
+            ready_refs, _ = ray.wait(list(waiting), num_returns=len(waiting), timeout=min(POLL_S, left))
+            for ref in ready_refs:
+                index = waiting.pop(ref)
+                try:
+                    parts[index] = ray.get(ref, timeout=POLL_S)
+                except RayTaskError as error:
+                    raise TrainingError(f"a worker failed computing chunk {index}'s gradient part: {error}") from None
+                except (RayError, GetTimeoutError):
+                    pass  # the worker died: the part is computed here
+        return parts

@@ -1,11 +1,13 @@
 """Episodes and the population rollout: the hot path, pure JAX, one jitted function.
 
 ``make_pair_evaluator`` builds the function a worker runs: for a chunk of pair
-indices it regenerates each pair's noise from (iteration seed, pair index),
-plays the same episodes with theta + sigma z and theta - sigma z, and returns
-their mean scores. Nothing but the flat parameters, a seed and indices goes in;
-scores [C, 2] come out, and for a worker also the chunk's noise, which it keeps
-for the chunk's share of the gradient.
+indices and their noise, it plays the same episodes with theta + sigma z and
+theta - sigma z and returns their mean scores [C, 2]. The noise comes in from
+``es.GradientParts.noise`` (a pure function of the iteration seed and the
+chunk), the very function that regenerates it for the chunk's share of the
+gradient: the noise a worker keeps from scoring a chunk and the noise anyone
+regenerates are the output of one program, the same bits by construction.
+Nothing but the flat parameters, a seed and indices travels to a worker.
 """
 
 from __future__ import annotations
@@ -104,11 +106,12 @@ def record_episodes(params: Params, config: Config, env: Environment, key: jax.A
     return Trajectory(initial_states, states, actions, rewards, dones, scores)
 
 
-def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams, with_noise: bool = False):
-    """jit(theta [D], iteration_seed uint32, pair_indices [C]) -> scores [C, 2] (+z, -z).
+def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
+    """jit(theta [D], iteration_seed uint32, pair_indices [C], noise [C, noise_size]) -> scores [C, 2] (+z, -z).
 
-    ``with_noise``: (scores, the pairs' noise [C, noise_size]), which a worker
-    keeps to compute the chunk's share of the gradient without regenerating it.
+    ``noise`` is the pairs' noise as ``es.gradient_parts(...).noise`` makes it
+    for the chunk; the episodes each pair plays still come from (iteration
+    seed, pair index) alone.
     """
 
     def member_score(theta: jax.Array, episode_key: jax.Array) -> jax.Array:
@@ -118,21 +121,17 @@ def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams, wi
         params = perturbed_params(theta, noise, step, layout)
         return jnp.mean(run_episodes(params, config, env, episode_key, config.trials))
 
-    def pair_scores(theta: jax.Array, key: jax.Array, pair_index: jax.Array) -> jax.Array:
-        noise = es.pair_noise(key, pair_index, layout.perturbation.noise_size)
+    def pair_scores(theta: jax.Array, key: jax.Array, pair_index: jax.Array, noise: jax.Array) -> jax.Array:
         episode_key = es.pair_episode_key(key, pair_index)  # both halves see the same episodes
         if layout.perturbation.rank > 0:
             steps = jnp.array([config.sigma, -config.sigma], jnp.float32)
-            scores = jax.vmap(low_rank_member_score, in_axes=(None, None, 0, None))(theta, noise, steps, episode_key)
-        else:
-            members = jnp.stack([theta + config.sigma * noise, theta - config.sigma * noise])
-            scores = jax.vmap(member_score, in_axes=(0, None))(members, episode_key)
-        return scores, noise
+            return jax.vmap(low_rank_member_score, in_axes=(None, None, 0, None))(theta, noise, steps, episode_key)
+        members = jnp.stack([theta + config.sigma * noise, theta - config.sigma * noise])
+        return jax.vmap(member_score, in_axes=(0, None))(members, episode_key)
 
-    def evaluate(theta: jax.Array, iteration_seed: jax.Array, pair_indices: jax.Array):
+    def evaluate(theta: jax.Array, iteration_seed: jax.Array, pair_indices: jax.Array, noise: jax.Array):
         key = es.iteration_key(iteration_seed)
-        scores, noise = jax.vmap(pair_scores, in_axes=(None, None, 0))(theta, key, pair_indices)
-        return (scores, noise) if with_noise else scores
+        return jax.vmap(pair_scores, in_axes=(None, None, 0, 0))(theta, key, pair_indices, noise)
 
     return jax.jit(evaluate)
 

@@ -132,3 +132,116 @@ def _wait_until_dead(ray, actor, timeout_s: float = 30.0) -> None:
             pass
         time.sleep(0.05)
     raise AssertionError(f"the killed actor still answers after {timeout_s} s")
+
+
+def _fake_workers(monkeypatch, hang_on=None, part_delay_s=0.0, sigterm_on_seed=None):
+    """The pool's workers become light fake actors (no JAX): zero scores and zero parts, at once unless told.
+
+    ``hang_on``: (seed, first pair) of a chunk that never finishes; ``part_delay_s``:
+    how long ``gradient_part`` takes; ``sigterm_on_seed``: ``gradient_part`` of that
+    seed first sends SIGTERM to this (the driver's) process, then hangs.
+    """
+    import os
+
+    import envs
+    from pizero_ray import rollout, workers
+
+    chunk = CONFIG.chunk_size
+    size = rollout.flat_params(CONFIG, envs.make(CONFIG.env))[1].size
+    driver_pid = os.getpid()
+
+    class FakeWorker:  # defined in a function: Ray pickles it by value
+        def ready(self):
+            import os
+
+            import ray
+            return {"pid": os.getpid(), "node_id": ray.get_runtime_context().get_node_id(), "devices": 1}
+
+        def evaluate_chunk(self, theta, seed, first_pair):
+            import time
+
+            import numpy as np
+            if (seed, first_pair) == hang_on:
+                time.sleep(3600)
+            return np.zeros((chunk, 2), np.float32)
+
+        def gradient_part(self, seed, first_pair, weights):
+            import os
+            import signal
+            import time
+
+            import numpy as np
+            if seed == sigterm_on_seed:
+                os.kill(driver_pid, signal.SIGTERM)
+                time.sleep(3600)
+            time.sleep(part_delay_s)
+            return np.zeros(size, np.float32)
+
+    def start_worker(*args, **kwargs):
+        import ray
+        return ray.remote(FakeWorker).options(num_cpus=0, max_concurrency=2).remote()
+
+    monkeypatch.setattr(workers, "start_worker", start_worker)
+
+
+def _never(index):
+    raise AssertionError(f"chunk {index}'s part computed here")
+
+
+def test_a_stop_interrupts_the_wait_for_slow_gradient_parts(ray_session, monkeypatch):
+    import time
+
+    import numpy as np
+
+    from pizero_ray.pool import Interrupted, PoolOptions, WorkerPool
+
+    _fake_workers(monkeypatch, part_delay_s=3600)
+    pool = WorkerPool(CONFIG, PoolOptions(max_workers=1))  # the chunk timeout is 300 s
+    try:
+        result = pool.evaluate(ray_session.put(np.zeros(3, np.float32)), 1)
+        stop_at = time.time() + 0.3
+        with pytest.raises(Interrupted):
+            pool.gradient_parts(1, np.ones(CONFIG.population, np.float32), result.owners, _never,
+                                should_stop=lambda: time.time() > stop_at)
+        assert time.time() - stop_at < 1.5  # looked at every POLL_S (0.5 s)
+    finally:
+        pool.shutdown()
+
+
+def test_sigterm_while_waiting_for_gradient_parts_saves_the_last_finished_iteration(
+        tmp_path, monkeypatch, ray_session, compile_cache_dir):
+    import time
+
+    from pizero_ray import es
+
+    _fake_workers(monkeypatch, sigterm_on_seed=es.iteration_seed(CONFIG.seed, 1))  # in the second iteration
+    started = time.time()
+    result, rows = _train(tmp_path, compile_cache_dir, workers=1)  # the chunk timeout is 300 s
+    assert time.time() - started < 120
+    assert result["stopped_by"] == "SIGTERM" and result["iteration"] == 1
+    assert [row["iteration"] for row in rows] == [1]
+    assert driver.load_run(tmp_path).iteration == 1  # the checkpoint saved on the way out
+
+
+def test_a_straggler_hung_past_the_chunk_timeout_is_killed_and_replaced(ray_session, monkeypatch):
+    import time
+
+    import numpy as np
+
+    from pizero_ray.pool import PoolOptions, WorkerPool
+
+    _fake_workers(monkeypatch, hang_on=(1, 2))  # chunk 1 of the iteration with seed 1
+    timeout_s = 1.5
+    pool = WorkerPool(CONFIG, PoolOptions(max_workers=1, chunk_timeout_s=timeout_s, min_fraction=0.5))
+    try:
+        theta_ref = ray_session.put(np.zeros(3, np.float32))
+        first = pool.evaluate(theta_ref, 1)
+        assert not first.valid[2:4].any()  # chunk 1 is left running, a straggler
+        (hung,) = pool._workers
+        time.sleep(2 * timeout_s + 0.5)  # past its deadline (it was handed out behind chunk 0: two timeouts)
+        second = pool.evaluate(theta_ref, 2)
+        assert hung not in pool._workers and len(pool._workers) == 1  # killed, and a new worker in its slot
+        assert second.valid.sum() >= CONFIG.population // 2
+        _wait_until_dead(ray_session, hung.actor)
+    finally:
+        pool.shutdown()

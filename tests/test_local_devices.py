@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import envs
-from pizero_ray import local_devices, rollout
+from pizero_ray import es, local_devices, rollout
 from pizero_ray.config import build_config
 
 CONFIG = build_config("tiny", population=8, chunk_size=2)
@@ -17,11 +17,13 @@ SEED = 12345
 
 @pytest.fixture(scope="module")
 def theta_and_reference():
-    """Initial parameters, and every chunk's scores from the plain jitted evaluator on the default device."""
+    """Initial parameters, and every chunk's scores from the plain jitted functions on the default device."""
     env = envs.make(CONFIG.env, **CONFIG.env_kwargs())
     theta, layout = rollout.flat_params(CONFIG, env)
     evaluate = rollout.make_pair_evaluator(CONFIG, env, layout)
-    reference = [np.asarray(evaluate(theta, np.uint32(SEED), np.arange(first, first + CONFIG.chunk_size)))
+    noise = es.gradient_parts(CONFIG, layout.perturbation).noise
+    reference = [np.asarray(evaluate(theta, np.uint32(SEED), np.arange(first, first + CONFIG.chunk_size),
+                                     noise(np.uint32(SEED), np.int32(first))))
                  for first in FIRST_PAIRS]
     return np.asarray(theta), reference
 
@@ -49,13 +51,51 @@ def test_chunks_dealt_over_both_devices_score_as_on_one(chunks, theta_and_refere
 def test_a_chunks_gradient_part_from_kept_noise_equals_the_regenerated_one(chunks, theta_and_reference):
     theta, _ = theta_and_reference
     weights = np.linspace(-1, 1, CONFIG.chunk_size).astype(np.float32)
-    chunks.evaluate(theta, SEED, 2)  # keeps the chunk's noise
-    kept = chunks.gradient_part(SEED, 2, weights)
-    regenerated = chunks.gradient_part(SEED, 2, weights)  # the noise was used up: regenerated
-    assert kept.shape == (chunks.parameters,) and np.abs(kept).sum() > 0
-    np.testing.assert_array_equal(kept, regenerated)
-    chunks.evaluate(theta, SEED + 1, 2)  # a new iteration's chunk replaces the old noise
+    layout = rollout.flat_params(CONFIG, envs.make(CONFIG.env, **CONFIG.env_kwargs()))[1]
+    driver_parts = es.gradient_parts(CONFIG, layout.perturbation)  # as the driver regenerates a part
+    for first in (0, 2):  # one chunk on each device, as two threads of a worker would run them
+        chunks.evaluate(theta, SEED, first)
+    for first in (0, 2):
+        regenerated_before = chunks.regenerated_parts
+        kept = chunks.gradient_part(SEED, first, weights)
+        assert chunks.regenerated_parts == regenerated_before  # from the kept noise
+        assert kept.shape == (chunks.parameters,) and np.abs(kept).sum() > 0
+        np.testing.assert_array_equal(kept, driver_parts.regenerated(SEED, first, weights))
+        np.testing.assert_array_equal(kept, chunks.gradient_part(SEED, first, weights))  # used up: regenerated
+        assert chunks.regenerated_parts == regenerated_before + 1
+    chunks.evaluate(theta, SEED + 1, 2)
     assert not np.array_equal(chunks.gradient_part(SEED + 1, 2, weights), kept)
+
+
+def test_a_straggler_of_an_older_iteration_keeps_the_newer_ones_noise(chunks, theta_and_reference):
+    theta, _ = theta_and_reference
+    weights = np.ones(CONFIG.chunk_size, np.float32)
+    old, new = SEED + 100, SEED + 101
+    chunks.evaluate(theta, old, 0)
+    chunks.evaluate(theta, new, 0)
+    chunks.evaluate(theta, new, 2)
+    chunks.evaluate(theta, old, 4)  # the old iteration's straggler finishes during the new one
+    regenerated_before = chunks.regenerated_parts
+    chunks.gradient_part(new, 0, weights)
+    chunks.gradient_part(new, 2, weights)
+    assert chunks.regenerated_parts == regenerated_before  # both parts from the kept noise
+
+
+def test_the_noise_cache_keeps_the_two_newest_seeds_within_its_byte_cap():
+    cache = local_devices.NoiseCache(chunk_bytes=10, max_bytes=30)
+    cache.keep(1, 0, "1/0")
+    cache.keep(2, 0, "2/0")
+    cache.keep(1, 2, "1/2")  # a straggler of the seed before: kept, evicts nothing
+    assert len(cache) == 3
+    cache.keep(2, 2, "2/2")  # over the byte cap: not kept
+    assert len(cache) == 3 and cache.take(2, 2) is None
+    cache.keep(3, 0, "3/0")  # a new iteration: seed 1 is over
+    assert cache.take(1, 0) is None and cache.take(1, 2) is None
+    cache.keep(1, 4, "1/4")  # a late straggler of seed 1 is not mistaken for a new iteration
+    assert cache.take(1, 4) is None
+    assert cache.take(2, 0) == "2/0" and cache.take(3, 0) == "3/0"
+    assert cache.take(3, 0) is None  # a part is asked for once
+    assert len(cache) == 0 and cache.misses == 5
 
 
 def test_concurrent_calls_each_borrow_a_device_and_score_as_on_one(chunks, theta_and_reference):

@@ -3,24 +3,35 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from pizero_ray import rollout
+from pizero_ray import es, rollout
 from pizero_ray.config import build_config
+
+
+def pair_scorer(config, env):
+    """(theta, scores(seed, first_pair) of the chunk from first_pair on), as a worker computes them."""
+    theta, layout = rollout.flat_params(config, env)
+    evaluate = rollout.make_pair_evaluator(config, env, layout)
+    noise = es.gradient_parts(config, layout.perturbation).noise  # the function that regenerates the noise
+
+    def scores(seed, first_pair=0):
+        pairs = np.arange(first_pair, first_pair + config.chunk_size, dtype=np.int32)
+        return np.asarray(evaluate(theta, np.uint32(seed), pairs, noise(np.uint32(seed), np.int32(first_pair))))
+
+    return theta, scores
 
 
 @pytest.fixture(scope="module")
 def evaluator(tiny_config, tsp_env):
-    theta, layout = rollout.flat_params(tiny_config, tsp_env)
-    return theta, rollout.make_pair_evaluator(tiny_config, tsp_env, layout)
+    return pair_scorer(tiny_config, tsp_env)
 
 
 def test_pair_scores_are_a_function_of_seed_and_indices(evaluator, tiny_config):
-    theta, evaluate = evaluator
-    pairs = jnp.arange(0, tiny_config.chunk_size)
-    first = np.asarray(evaluate(theta, np.uint32(11), pairs))
-    again = np.asarray(evaluate(theta, np.uint32(11), pairs))
+    _, scores = evaluator
+    first = scores(11)
+    again = scores(11)
     assert first.shape == (tiny_config.chunk_size, 2)
     np.testing.assert_array_equal(first, again)
-    other = np.asarray(evaluate(theta, np.uint32(12), pairs))
+    other = scores(12)
     assert not np.array_equal(first, other)
     assert np.all(first < 0) and np.all(first > -10)  # minus a tour length in the unit square
 
@@ -28,9 +39,8 @@ def test_pair_scores_are_a_function_of_seed_and_indices(evaluator, tiny_config):
 def test_both_halves_of_a_pair_play_the_same_episodes(tsp_env):
     # With a vanishing sigma both members act identically, so equal scores
     # show they played the same instances; different pairs play different ones.
-    config = build_config("tiny", sigma=1e-9)
-    theta, layout = rollout.flat_params(config, tsp_env)
-    scores = np.asarray(rollout.make_pair_evaluator(config, tsp_env, layout)(theta, np.uint32(5), jnp.arange(2)))
+    config = build_config("tiny", sigma=1e-9, chunk_size=2)
+    scores = pair_scorer(config, tsp_env)[1](5)
     np.testing.assert_array_equal(scores[:, 0], scores[:, 1])
     assert scores[0, 0] != scores[1, 0]
 
@@ -59,11 +69,10 @@ def test_low_rank_members_play_exactly_theta_plus_the_expanded_noise(tsp_env, en
     import envs
     from pizero_ray import es
 
-    config = build_config("tiny", env=env_name, perturbation_rank=2, sigma=0.5, **extra)
+    config = build_config("tiny", env=env_name, perturbation_rank=2, sigma=0.5, population=3, chunk_size=3, **extra)
     env = tsp_env if env_name == "tsp" else envs.make(env_name)
     theta, layout = rollout.flat_params(config, env)
-    pairs = jnp.arange(3)
-    scores = np.asarray(rollout.make_pair_evaluator(config, env, layout)(theta, np.uint32(9), pairs))
+    scores = pair_scorer(config, env)[1](9)
     key = es.iteration_key(np.uint32(9))
     member_score = jax.jit(lambda member, episode_key: jnp.mean(
         rollout.run_episodes(layout.unravel(member), config, env, episode_key, config.trials)))
