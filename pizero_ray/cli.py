@@ -140,6 +140,9 @@ def _parser() -> argparse.ArgumentParser:
 
     resume = sub.add_parser("resume", help="continue a run from its newest checkpoint")
     resume.add_argument("run_dir")
+    resume.add_argument("--restart", action="store_true",
+                        help="start again from iteration 0 although the run dir holds progress; what it replaces "
+                             "is kept (checkpoints in RUN_DIR/replaced/, metrics rows in metrics-dropped.jsonl)")
     _add_run_options(resume)
 
     evaluate = sub.add_parser("eval", help="evaluate a run's current parameters")
@@ -170,6 +173,8 @@ def _parser() -> argparse.ArgumentParser:
                        help="search budgets to sweep (default 1,10,50; --quick 10)")
     bench.add_argument("--populations", type=_positive_int_list, metavar="P1,P2,...",
                        help="populations (pairs) to sweep (default 64,256,1000; --quick 64)")
+    bench.add_argument("--gpus", type=float, default=0.0, metavar="G",
+                       help="GPUs the Ray trainer's workers share, G/W each for W workers (default 0: CPU workers)")
 
     plot = sub.add_parser("plot", help="learning curves of one or more runs as a PNG")
     plot.add_argument("run_dirs", nargs="+")
@@ -356,7 +361,8 @@ def _cmd_resume(args) -> int:
     config = rundir.read_config(run_path)
     if args.iterations is None:
         raise UsageError("resume needs --iterations N, the total number of iterations to reach")
-    return _run_training(run_path, config, _run_options(args, args.iterations), args.no_progress)
+    options = dataclasses.replace(_run_options(args, args.iterations), restart=args.restart)
+    return _run_training(run_path, config, options, args.no_progress)
 
 
 def _cmd_eval(args) -> int:
@@ -413,7 +419,10 @@ def _cmd_bench(args) -> int:
         plan = dataclasses.replace(plan, simulation_sweep=args.simulations)
     if args.populations:
         plan = dataclasses.replace(plan, population_sweep=args.populations)
-    result = bench.run(plan, progress=lambda text: print(f"pizero bench: {text}", file=sys.stderr, flush=True))
+    if args.gpus < 0:
+        raise UsageError(f"--gpus must be non-negative, got {args.gpus}")
+    result = bench.run(plan, progress=lambda text: print(f"pizero bench: {text}", file=sys.stderr, flush=True),
+                       worker_gpus=args.gpus)
     print(bench.to_json(result) if args.json else bench.table(result))
     return 0
 
@@ -438,6 +447,9 @@ COMMANDS = {
 
 def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    # On a GPU node the driver (or bench, eval) needs a few MB of the GPU; JAX's
+    # default of taking 75% of it up front would starve the workers beside it.
+    os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
     args = _parser().parse_args(argv)
     try:
         return COMMANDS[args.command](args)

@@ -56,6 +56,7 @@ class RunOptions:
     worker_resources: tuple[tuple[str, float], ...] = ()
     pin_cores: bool = True  # CPU workers pin themselves to cores of their own (local_devices.CoreClaim)
     kill_schedule: frozenset[tuple[int, int]] = frozenset()  # chaos: see pool.PoolOptions
+    restart: bool = False  # start over at iteration 0 though the run dir holds progress (checkpoints.prepare_resume)
 
     def pool_options(self) -> PoolOptions:
         return PoolOptions(
@@ -170,12 +171,9 @@ def train(
     compile_cache.enable(options.compile_cache)
     env = envs.make(config.env, **config.env_kwargs())
     theta, opt_state, layout, update = _initial_state(config, env)
-    start_iteration = 0
-    restored = checkpoints.restore_latest(run_path, theta, opt_state, quarantine_corrupt=True)
-    if restored is not None:
-        start_iteration, theta, opt_state = restored.iteration, restored.theta, restored.opt_state
-    metrics = [row for row in rundir.read_metrics(run_path) if row["iteration"] <= start_iteration]
-    rundir.rewrite_metrics(run_path, metrics)
+    # Refuses a run dir whose progress it cannot continue (unless options.restart); never deletes a metrics row.
+    start_iteration, theta, opt_state, metrics = checkpoints.prepare_resume(run_path, theta, opt_state,
+                                                                           restart=options.restart)
     wall_offset = metrics[-1]["wall_time_s"] if metrics else 0.0
 
     evaluator = None
@@ -201,6 +199,8 @@ def train(
     stop = _StopRequest()
     try:
         with stop:
+            if iteration == 0:
+                save()  # a run killed before its first periodic checkpoint still resumes (prepare_resume)
             if evaluator is not None and not metrics:
                 # Row 0: the untrained agent, so every learning curve has its starting point.
                 eval_scores = evaluator(theta_device, jax.random.PRNGKey(EVAL_SEED))
@@ -216,8 +216,12 @@ def train(
                 t1 = time.time()
                 weights, num_pairs = update.weights(jnp.asarray(result.scores), jnp.asarray(result.valid))
                 weights = np.asarray(weights)
-                parts, parts_here = pool.gradient_parts(
-                    seed, weights, result.owners, functools.partial(update.part_here, seed, weights))
+                try:
+                    parts, parts_here = pool.gradient_parts(
+                        seed, weights, result.owners, functools.partial(update.part_here, seed, weights),
+                        should_stop=stop)
+                except Interrupted:
+                    break  # as above: theta is still the last finished iteration's, saved below
                 theta_device, opt_state, stats = update.step(
                     theta_device, opt_state, es.GradientParts.total(parts), num_pairs)
                 theta_device.block_until_ready()

@@ -1,5 +1,8 @@
 """A run directory: config.json, metrics.jsonl and checkpoints/.
 
+Nothing here deletes a row: those a resume takes out of metrics.jsonl go to
+metrics-dropped.jsonl.
+
 Paths are made absolute at the edge: ``ray job submit`` runs the entrypoint in
 a temporary working directory, so a relative run dir would land there.
 """
@@ -8,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from pathlib import Path
 from typing import Iterable
 
@@ -15,6 +19,7 @@ from pizero_ray.config import Config, ConfigError
 
 CONFIG_FILE = "config.json"
 METRICS_FILE = "metrics.jsonl"
+DROPPED_METRICS_FILE = "metrics-dropped.jsonl"  # rows a resume or restart took out of metrics.jsonl
 
 
 def resolve(run_dir: str | os.PathLike) -> Path:
@@ -40,27 +45,58 @@ def read_config(run_dir: Path) -> Config:
         raise ConfigError(f"{path} is not a valid config: {error}") from None
 
 
-def read_metrics(run_dir: Path) -> list[dict]:
+def _metrics_lines(run_dir: Path) -> tuple[list[dict], list[str]]:
+    """(the readable rows, the raw lines from the first unreadable one on)."""
     path = run_dir / METRICS_FILE
     if not path.is_file():
-        return []
+        return [], []
+    lines = [line.strip() for line in path.read_text().splitlines() if line.strip()]
     rows = []
-    for line in path.read_text().splitlines():
-        line = line.strip()
-        if line:
-            try:
-                rows.append(json.loads(line))
-            except json.JSONDecodeError:
-                break  # a line cut short by a crash ends the readable log
-    return rows
+    for index, line in enumerate(lines):
+        try:
+            rows.append(json.loads(line))
+        except json.JSONDecodeError:
+            return rows, lines[index:]  # a line cut short by a crash ends the readable log
+    return rows, []
+
+
+def read_metrics(run_dir: Path) -> list[dict]:
+    return _metrics_lines(run_dir)[0]
 
 
 def rewrite_metrics(run_dir: Path, rows: list[dict]) -> None:
-    """Replaces metrics.jsonl with exactly ``rows`` (atomically): resume keeps the rows up to its checkpoint."""
+    """Replaces metrics.jsonl with exactly ``rows`` (atomically, on disk before it returns)."""
     path = run_dir / METRICS_FILE
     tmp = path.with_name(METRICS_FILE + ".tmp")
-    tmp.write_text("".join(json.dumps(row, sort_keys=True) + "\n" for row in rows))
+    _write_synced(tmp, "".join(json.dumps(row, sort_keys=True) + "\n" for row in rows), "w")
     os.replace(tmp, path)
+
+
+def keep_metrics_through(run_dir: Path, iteration: int, reason: str) -> list[dict]:
+    """Cuts metrics.jsonl to the rows up to ``iteration`` and returns them.
+
+    The rows above it, and any unreadable tail, are appended to
+    metrics-dropped.jsonl before metrics.jsonl is rewritten: a crash in between
+    leaves them in both files, never in neither.
+    """
+    rows, unreadable = _metrics_lines(run_dir)
+    kept = [row for row in rows if row["iteration"] <= iteration]
+    dropped = [row for row in rows if row["iteration"] > iteration]
+    if dropped or unreadable:
+        stamp = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+        records = [{"dropped_at": stamp, "reason": reason, "row": row} for row in dropped]
+        records += [{"dropped_at": stamp, "reason": reason, "unreadable_line": line} for line in unreadable]
+        _write_synced(run_dir / DROPPED_METRICS_FILE,
+                      "".join(json.dumps(record, sort_keys=True) + "\n" for record in records), "a")
+        rewrite_metrics(run_dir, kept)
+    return kept
+
+
+def _write_synced(path: Path, text: str, mode: str) -> None:
+    with open(path, mode, encoding="utf-8") as file:
+        file.write(text)
+        file.flush()
+        os.fsync(file.fileno())
 
 
 class MetricsLog:

@@ -72,6 +72,22 @@ def test_driver_sigkilled_mid_run_then_resumed(tmp_path, ray_cluster, compile_ca
     assert _iterations(path) == list(range(1, ITERATIONS + 1))  # no duplicate, no missing iteration
 
 
+def test_a_driver_killed_before_its_first_periodic_checkpoint_resumes_from_iteration_0(
+        tmp_path, ray_cluster, compile_cache_dir, reference):
+    """What a KubeRay retry meets: rows but no periodic checkpoint. The one saved at the start is there."""
+    path = tmp_path / "run"
+    args = [arg if arg != "3" else "100" for arg in TRAIN_ARGS]  # --checkpoint-every 100
+    process = _pizero(["train", "--run-dir", str(path), "--iterations", str(ITERATIONS), *args],
+                      ray_cluster, compile_cache_dir)
+    _wait_for_rows(path, 2, process)
+    process.kill()
+    process.wait()
+    assert checkpoints.checkpoint_steps(path) == [0]
+    result = _resume(path, ray_cluster, compile_cache_dir)
+    assert result["parameter_hash"] == reference[1]
+    assert _iterations(path) == list(range(1, ITERATIONS + 1))
+
+
 def test_sigterm_saves_a_checkpoint_and_resume_matches(tmp_path, ray_cluster, compile_cache_dir, reference):
     path = tmp_path / "run"
     process = _pizero(["train", "--run-dir", str(path), "--iterations", str(ITERATIONS), *TRAIN_ARGS],
@@ -140,3 +156,157 @@ def test_all_checkpoints_corrupt_is_a_clear_error(tmp_path, reference, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("pizero: error: no readable checkpoint in")
     assert (path / "metrics.jsonl").read_text() == (reference[0] / "metrics.jsonl").read_text()  # nothing lost
+
+
+def _copy_of_reference(tmp_path, reference) -> Path:
+    import shutil
+
+    path = tmp_path / "run"
+    shutil.copytree(reference[0], path)
+    assert checkpoints.checkpoint_steps(path) == [6, 9, 12]
+    return path
+
+
+def _templates():
+    """The run's initial parameters and optimiser state: what a resume restores into."""
+    import envs
+
+    env = envs.make(CONFIG.env, **CONFIG.env_kwargs())
+    theta, opt_state, _, _ = driver._initial_state(CONFIG, env)
+    return theta, opt_state
+
+
+def _dropped(path):
+    return [json.loads(line) for line in (path / run_dir.DROPPED_METRICS_FILE).read_text().splitlines()]
+
+
+def test_a_restore_error_that_is_not_damage_changes_nothing(tmp_path, reference, monkeypatch, capsys):
+    import orbax.checkpoint as ocp
+
+    path = _copy_of_reference(tmp_path, reference)
+    metrics = (path / "metrics.jsonl").read_text()
+
+    def transient(self, *args, **kwargs):
+        raise OSError("transient")
+
+    monkeypatch.setattr(ocp.CheckpointManager, "restore", transient)
+    newest = path / "checkpoints" / "12"
+    for argv in (["resume", str(path), "--iterations", "20"], ["inspect", str(path)]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err[-1] == (f"pizero: error: cannot restore checkpoint {newest}: OSError: transient; "
+                           "not treated as corrupt because its files are as saved")
+        assert not any("moved" in line or "previous checkpoint" in line for line in err)  # no fallback to 9
+    assert checkpoints.checkpoint_steps(path) == [6, 9, 12]
+    assert not (path / "checkpoints-corrupt").exists()
+    assert (path / "metrics.jsonl").read_text() == metrics
+    assert not (path / run_dir.DROPPED_METRICS_FILE).exists()
+
+
+@pytest.mark.parametrize("change", ["optimizer structure", "parameter dtype"])
+def test_a_changed_state_layout_is_not_taken_for_corruption(tmp_path, reference, change):
+    """What an optax or Orbax upgrade can do: the files are intact, the restore still fails."""
+    import jax.numpy as jnp
+    import numpy as np
+    import optax
+
+    path = _copy_of_reference(tmp_path, reference)
+    metrics = (path / "metrics.jsonl").read_text()
+    theta, opt_state = _templates()
+    if change == "optimizer structure":
+        opt_state = optax.sgd(0.1, momentum=0.9).init(jnp.asarray(theta))
+        expected = "cannot restore checkpoint .*/checkpoints/12: .*its files are as saved"
+    else:  # restored with a cast: contents differ from the hash, files do not
+        theta = theta.astype(np.float64)
+        expected = "checkpoint .*/checkpoints/12 restored to contents that do not match its hash, but its files are"
+    with pytest.raises(checkpoints.CheckpointError, match=expected):
+        checkpoints.prepare_resume(path, theta, opt_state)
+    assert checkpoints.checkpoint_steps(path) == [6, 9, 12]
+    assert not (path / "checkpoints-corrupt").exists()
+    assert (path / "metrics.jsonl").read_text() == metrics
+
+
+def test_a_second_resume_after_a_full_quarantine_refuses_and_restart_keeps_the_rows(
+        tmp_path, reference, compile_cache_dir, capsys):
+    path = _copy_of_reference(tmp_path, reference)
+    metrics = (path / "metrics.jsonl").read_text()
+    for step in (6, 9, 12):
+        for meta in (path / "checkpoints" / str(step) / "meta").rglob("metadata"):
+            meta.write_text("{not json")
+    assert main(["resume", str(path), "--iterations", "20"]) == 2
+    assert "no readable checkpoint" in capsys.readouterr().err.strip().splitlines()[-1]
+    assert len(list((path / "checkpoints-corrupt").iterdir())) == 3
+
+    assert main(["resume", str(path), "--iterations", "20"]) == 2  # what a KubeRay retry does next
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"pizero: error: run dir {path} holds 3 quarantined checkpoints in "
+                       f"{path / 'checkpoints-corrupt'} and 12 metrics rows but no checkpoint to continue from; "
+                       "to start again from iteration 0, keeping what it replaces, add --restart")
+    assert (path / "metrics.jsonl").read_text() == metrics
+
+    assert main(["resume", str(path), "--iterations", "2", "--restart", "--workers", "2", "--no-progress",
+                 "--compile-cache", compile_cache_dir]) == 0
+    assert _iterations(path) == [1, 2]
+    dropped = _dropped(path)
+    assert [record["row"] for record in dropped] == [json.loads(line) for line in metrics.splitlines()]
+    assert all(record["dropped_at"] and "--restart" in record["reason"] for record in dropped)
+    (replaced,) = (path / "replaced").iterdir()
+    assert len(list((replaced / "checkpoints-corrupt").iterdir())) == 3  # set aside, not deleted
+    assert not (path / "checkpoints-corrupt").exists()
+    assert checkpoints.checkpoint_steps(path) == [0, 2]
+
+
+def test_metrics_are_cut_to_the_newest_checkpoint_and_the_rest_kept(tmp_path, reference):
+    path = _copy_of_reference(tmp_path, reference)
+    rows = run_dir.read_metrics(path)
+    # What a driver SIGKILLed during iteration 15 leaves: rows past the newest checkpoint, the last one cut short.
+    extra = [{**rows[-1], "iteration": 13}, {**rows[-1], "iteration": 14}]
+    with open(path / "metrics.jsonl", "a") as file:
+        file.write("".join(json.dumps(row) + "\n" for row in extra) + '{"iteration": 15, "mean_sc')
+    resumed = checkpoints.prepare_resume(path, *_templates())
+    assert resumed.iteration == 12
+    assert run_dir.read_metrics(path) == resumed.metrics == rows  # nothing at or below the checkpoint is cut
+    dropped = _dropped(path)
+    assert [record.get("row") for record in dropped[:2]] == extra
+    assert dropped[2]["unreadable_line"] == '{"iteration": 15, "mean_sc'
+
+
+@pytest.mark.parametrize("damage", ["truncate", "delete"])
+def test_a_truncated_or_deleted_file_is_corrupt_and_the_previous_checkpoint_is_used(tmp_path, reference, capsys,
+                                                                                    damage):
+    path = _copy_of_reference(tmp_path, reference)
+    data = _newest_step_data(path)
+    if damage == "truncate":
+        data.write_bytes(data.read_bytes()[: data.stat().st_size // 2])
+    else:
+        data.unlink()
+    resumed = checkpoints.prepare_resume(path, *_templates())
+    assert resumed.iteration == 9
+    name = data.relative_to(path / "checkpoints" / "12").as_posix()
+    assert f"checkpoint {path / 'checkpoints' / '12'} is corrupt: {name} is " in capsys.readouterr().err
+    assert checkpoints.checkpoint_steps(path) == [6, 9]
+    assert [p.name.split("-")[0] for p in (path / "checkpoints-corrupt").iterdir()] == ["12"]
+    assert _iterations(path) == list(range(1, 10))
+    assert [record["row"]["iteration"] for record in _dropped(path)] == [10, 11, 12]
+
+
+@pytest.mark.parametrize("damage, corrupt", [("remove state", True), ("empty a file", True), ("truncate", False)])
+def test_a_checkpoint_without_a_manifest_is_corrupt_only_when_visibly_broken(tmp_path, reference, damage, corrupt):
+    """Older checkpoints have no manifest: a missing item or an empty file shows damage, a short file does not."""
+    import shutil
+
+    path = _copy_of_reference(tmp_path, reference)
+    newest = path / "checkpoints" / "12"
+    (newest / checkpoints.MANIFEST_FILE).unlink()
+    data = _newest_step_data(path)
+    if damage == "remove state":
+        shutil.rmtree(newest / "state")
+    else:
+        data.write_bytes(b"" if damage == "empty a file" else data.read_bytes()[: data.stat().st_size // 2])
+    if corrupt:
+        assert checkpoints.prepare_resume(path, *_templates()).iteration == 9
+        assert checkpoints.checkpoint_steps(path) == [6, 9]
+    else:
+        with pytest.raises(checkpoints.CheckpointError, match="no file manifest and its files look complete"):
+            checkpoints.prepare_resume(path, *_templates())
+        assert checkpoints.checkpoint_steps(path) == [6, 9, 12]

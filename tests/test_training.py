@@ -35,7 +35,7 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(ray_session, tmp_path,
         assert row["wall_time_s"] > 0
     info = _inspect(path, capsys)
     assert info["iteration"] == 3 and info["parameter_hash"] == result["parameter_hash"]
-    assert info["checkpoints"] == [2, 3]
+    assert info["checkpoints"] == [0, 2, 3]  # 0: saved before the first iteration
     untrained = driver.parameter_hash(np.asarray(rollout.flat_params(build_config("tiny"), envs.make("tsp"))[0]))
     assert info["parameter_hash"] != untrained  # three updates moved the parameters
 
