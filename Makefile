@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed-stamp
 RUN_DIR ?= runs/tsp-$(shell date +%Y%m%d-%H%M%S)
 ITERATIONS ?= 200
 
-.PHONY: install train test clean
+.PHONY: install train test device-check clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,12 @@ train: $(STAMP)
 
 test: $(STAMP)
 	JAX_PLATFORMS=cpu RAY_USAGE_STATS_ENABLED=0 $(BIN)/python -m pytest -q
+
+# On a machine with an NVIDIA GPU: the gpu extra, the GPU tests, the bench with
+# GPU workers and short TSP/Collect trainings, into one JSON under docs/bench/
+# (scripts/device_check.py). Without a GPU it says so and exits 0.
+device-check:
+	$(PYTHON) scripts/device_check.py $(DEVICE_CHECK_ARGS)
 
 clean:
 	rm -rf $(VENV) .pytest_cache

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pizero_ray.config import Config, build_config
+from pizero_ray.config import Config, build_config, largest_divisor_at_most
 
 LOW_RANK = 1  # the perturbation rank the benchmark's low-rank mode uses
 
@@ -75,8 +75,7 @@ def bench_config(population: int, chunk_size: int, simulations: int = 10, pertur
     The chunk is the largest divisor of the population not above ``chunk_size``
     that still gives each of ``devices`` devices a chunk.
     """
-    limit = max(1, min(chunk_size, population // devices))
-    chunk = max(c for c in range(1, limit + 1) if population % c == 0)
+    chunk = largest_divisor_at_most(population, max(1, min(chunk_size, population // devices)))
     return build_config(
         "default", env="tsp", population=population, chunk_size=chunk, perturbation_rank=perturbation_rank,
         hidden_size=64, latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=simulations,
@@ -189,7 +188,8 @@ def driver_update(config: Config, repeats: int) -> float:
     return statistics.median(times)
 
 
-def trainer(config: Config, workers: int, iterations: int, cache_dir: str, cpus_per_worker: int = 1) -> dict:
+def trainer(config: Config, workers: int, iterations: int, cache_dir: str, cpus_per_worker: int = 1,
+            gpus_per_worker: float = 0.0) -> dict:
     """The Ray trainer on the same work: median iteration and update time, first-result latency."""
     from pizero_ray import driver, run_dir
 
@@ -197,7 +197,7 @@ def trainer(config: Config, workers: int, iterations: int, cache_dir: str, cpus_
         path = Path(tmp)
         run_dir.write_config(path, config)
         options = driver.RunOptions(iterations=iterations, workers=workers, cpus_per_worker=cpus_per_worker,
-                                    checkpoint_every=0, compile_cache=cache_dir)
+                                    gpus_per_worker=gpus_per_worker, checkpoint_every=0, compile_cache=cache_dir)
         driver.train(path, config, options)
         rows = [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
     # The first iterations wait for the workers' start and, on a worker with
@@ -252,7 +252,8 @@ def traffic(config: Config, parameters: int) -> dict:
     }
 
 
-def run(plan: BenchPlan, progress=print) -> dict:
+def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
+    """Every measurement of ``plan``; the Ray trainer's W workers share ``worker_gpus`` GPUs (0: CPU workers)."""
     import jax
 
     from pizero_ray import local_devices, ray_setup
@@ -301,16 +302,20 @@ def run(plan: BenchPlan, progress=print) -> dict:
     def cpus_per_worker(workers: int) -> int:  # the workers share the cores the in-process rollout used
         return max(1, devices // workers)
 
+    def gpus_per_worker(workers: int) -> float:  # GPU workers share the GPUs (fractions of one, if need be)
+        return worker_gpus / workers
+
     with tempfile.TemporaryDirectory(prefix="pizero-bench-cache-") as cache:
         for mode, counts in (("exact", plan.exact_trainer_workers), ("low_rank", plan.low_rank_trainer_workers)):
             for workers in counts:
                 cold = " (cold compile cache)" if not trainers else ""
-                progress(f"Ray trainer ({mode}): {workers} worker(s), {cpus_per_worker(workers)} CPU(s) each{cold}")
+                progress(f"Ray trainer ({mode}): {workers} worker(s), {cpus_per_worker(workers)} CPU(s) "
+                         f"and {gpus_per_worker(workers):g} GPU each{cold}")
                 trainers[mode, workers] = trainer(configs[mode], workers, plan.trainer_iterations, cache,
-                                                  cpus_per_worker(workers))
+                                                  cpus_per_worker(workers), gpus_per_worker(workers))
             if mode == "exact":
                 progress("Ray trainer (exact): a new 1-CPU worker with the compile cache warm")
-                cached = trainer(configs["exact"], 1, 2, cache)
+                cached = trainer(configs["exact"], 1, 2, cache, gpus_per_worker=gpus_per_worker(1))
         progress("peak memory of a worker")
         worker_rss = {mode: worker_memory(configs[mode], cache) for mode in modes
                       if mode == "exact" or plan.low_rank_trainer_workers}
@@ -318,6 +323,7 @@ def run(plan: BenchPlan, progress=print) -> dict:
         "device": str(jax.devices()[0]),
         "device_kind": jax.devices()[0].device_kind,
         "rollout_devices": devices,
+        "trainer_worker_gpus": worker_gpus,
         "population": plan.population,
         "parameters": main["exact"]["parameters"],
         "low_rank_perturbation_rank": LOW_RANK,

@@ -67,6 +67,10 @@ def start_worker(
     env_vars = {"RAY_USAGE_STATS_ENABLED": "0"}
     if num_gpus == 0:
         env_vars["JAX_PLATFORMS"] = "cpu"  # a CPU worker on a GPU node must not grab the GPU
+    elif num_gpus < 1:
+        # Workers sharing a GPU (--gpus-per-worker 0.5): JAX's default of taking
+        # 75% of the GPU at start would leave the second one too little.
+        env_vars["XLA_PYTHON_CLIENT_PREALLOCATE"] = "false"
     devices = worker_devices(num_cpus, num_gpus)
     actor = ray.remote(RolloutWorker).options(
         num_cpus=num_cpus, num_gpus=num_gpus, resources=resources or {}, runtime_env={"env_vars": env_vars},

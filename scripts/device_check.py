@@ -1,0 +1,271 @@
+#!/usr/bin/env python3
+"""`make device-check`: the project's checks on an NVIDIA GPU, one command, under 8 minutes.
+
+1. Python with the ``gpu`` extra: ``make install`` and ``pip install -e '.[gpu]'``
+   into .venv; or, on an offline GPU machine, ``--python`` names an interpreter
+   that already has a CUDA JAX and ``--wheels DIR`` holds wheels of whatever it
+   lacks (scripts/fetch-device-wheels.sh makes that folder).
+2. The tests marked ``gpu`` (tests/test_gpu.py): kept and regenerated noise
+   bit-identical on the GPU, and the same parameter hash with 1 and 2 GPU workers.
+3. Whether the CPU and the GPU draw the same noise bits (a driver without a GPU
+   regenerates the noise of a chunk whose GPU worker died).
+4. ``pizero bench --quick --json`` with the Ray trainer's workers on the GPU.
+5. TSP and Collect trainings with ``--gpus-per-worker 1``, each stopped by SIGTERM
+   at its wall-clock budget (pizero checkpoints and exits), then evaluated.
+6. One JSON under docs/bench/, and a summary on stdout.
+
+Without a GPU it says so and exits 0. Each step has a deadline and records
+its own outcome, so one failing step still leaves the others' measurements.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+TRAININGS = (("tsp", ()), ("collect", ()))  # (env, extra train options)
+
+
+def gpu_names() -> list[str]:
+    """The NVIDIA GPUs nvidia-smi lists ([] where there is none, or no driver)."""
+    if shutil.which("nvidia-smi") is None:
+        return []
+    try:
+        listed = subprocess.run(["nvidia-smi", "--query-gpu=name,memory.total", "--format=csv,noheader"],
+                                capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        return []
+    return [line.strip() for line in listed.stdout.splitlines() if line.strip()] if listed.returncode == 0 else []
+
+
+def run(command: list[str], env: dict, timeout_s: float, log: Path | None = None) -> dict:
+    """Runs a command to completion or its deadline; its outcome, time and output tail."""
+    started = time.time()
+    with tempfile.TemporaryFile("w+") as output:
+        process = subprocess.Popen(command, cwd=ROOT, env=env, stdout=output, stderr=subprocess.STDOUT, text=True,
+                                   start_new_session=True)
+        try:
+            code = process.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            code = process.wait()
+        output.seek(0)
+        text = output.read()
+    if log is not None:
+        log.write_text(text)
+    timed_out = time.time() - started >= timeout_s
+    return {"command": " ".join(command), "exit_code": code, "timed_out": timed_out,
+            "seconds": round(time.time() - started, 1), "output_tail": text[-3000:]}
+
+
+def install_wheels(python: str, wheels: Path, target: Path) -> list[str]:
+    """Installs the wheels in ``wheels`` whose package ``python`` lacks (or has older) into ``target``."""
+    probe = ("import importlib.metadata as m, sys\n"
+             "from packaging.version import Version\n"
+             "name, version = sys.argv[1:]\n"
+             "try:\n    sys.exit(0 if Version(m.version(name)) >= Version(version) else 1)\n"
+             "except m.PackageNotFoundError:\n    sys.exit(1)\n")
+    needed = []
+    for wheel in sorted(wheels.glob("*.whl")):
+        name, version = wheel.name.split("-")[:2]
+        if subprocess.run([python, "-c", probe, name, version]).returncode != 0:
+            needed.append(wheel)
+    if needed:
+        subprocess.run([python, "-m", "pip", "install", "-q", "--no-index", "--no-deps", "--no-compile",
+                        "--target", str(target), *map(str, needed)], check=True)
+    return [wheel.name for wheel in needed]
+
+
+def python_environment(args) -> tuple[str, dict, dict]:
+    """(interpreter, environment for every step, what was installed): step 1."""
+    env = {**os.environ, "JAX_PLATFORMS": "cpu" if args.cpu_rehearsal else "cuda,cpu",
+           "XLA_PYTHON_CLIENT_PREALLOCATE": "false",  # the driver and the workers share the GPU
+           "RAY_USAGE_STATS_ENABLED": "0", "PYTHONUNBUFFERED": "1"}
+    env.pop("RAY_ADDRESS", None)
+    installed: dict = {}
+    if args.python:
+        python = args.python
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    else:
+        subprocess.run(["make", "-C", str(ROOT), "install"], check=True)
+        python = str(ROOT / ".venv" / "bin" / "python")
+        subprocess.run([python, "-m", "pip", "install", "-q", "-e", f"{ROOT}[gpu]"], check=True)
+        installed["gpu_extra"] = True
+    if args.wheels:
+        target = Path(tempfile.mkdtemp(prefix="pizero-device-site-"))
+        installed["wheels"] = install_wheels(python, Path(args.wheels), target)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(target), env.get("PYTHONPATH")]))
+    versions = subprocess.run(
+        [python, "-c", "import jax, ray, mctx, optax, orbax.checkpoint as o, sys; print(sys.version.split()[0], "
+         "jax.__version__, ray.__version__, mctx.__version__, optax.__version__, o.__version__, "
+         "[str(d) for d in jax.devices()])"], env=env, capture_output=True, text=True, timeout=300)
+    installed["versions"] = (versions.stdout or versions.stderr).strip().splitlines()[-1:]
+    if versions.returncode != 0:
+        raise SystemExit(f"device-check: {python} cannot import the project's dependencies: {versions.stderr[-500:]}")
+    return python, env, installed
+
+
+NOISE_PROBE = """
+import json, jax, numpy as np
+from pizero_ray import es, rollout
+from pizero_ray.config import build_config
+import envs
+config = build_config("default", env="tsp")
+_, layout = rollout.flat_params(config, envs.make("tsp"))
+parts = es.gradient_parts(config, layout.perturbation)
+drawn = {}
+for platform in ("cpu", "gpu"):
+    with jax.default_device(jax.devices(platform)[0]):
+        drawn[platform] = np.asarray(parts.noise(np.uint32(7), np.int32(64)))
+differ = drawn["cpu"] != drawn["gpu"]
+print(json.dumps({"noise_values": int(differ.size), "differing_values": int(differ.sum()),
+                  "max_abs_difference": float(np.abs(drawn["cpu"] - drawn["gpu"]).max())}))
+"""
+
+
+def noise_across_backends(python: str, env: dict) -> dict:
+    """Step 3: one chunk's noise drawn on the CPU and on the GPU by the same jitted function."""
+    outcome = run([python, "-c", NOISE_PROBE], env, 300)
+    if outcome["exit_code"] == 0:
+        outcome.update(json.loads(outcome["output_tail"].strip().splitlines()[-1]))
+    return outcome
+
+
+def last_json(text: str):
+    for line in reversed(text.strip().splitlines()):
+        if line.startswith("{"):
+            return json.loads(line)
+    return None
+
+
+def train_for(python: str, env: dict, name: str, extra: tuple, seconds: float, gpus: float, out: Path) -> dict:
+    """Step 5 for one environment: train until SIGTERM at ``seconds``, then evaluate on 1,000 episodes."""
+    run_dir = out / f"run-{name}"
+    command = [python, "-m", "pizero_ray.cli", "train", "--env", name, "--run-dir", str(run_dir),
+               "--iterations", "1000000", "--workers", "1", "--gpus-per-worker", str(gpus),
+               "--checkpoint-every", "50", "--no-progress", "--compile-cache", str(out / "jax-cache"), *extra]
+    started = time.time()
+    process = subprocess.Popen(command, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               text=True, start_new_session=True)
+    try:
+        text, _ = process.communicate(timeout=seconds)
+    except subprocess.TimeoutExpired:
+        process.send_signal(signal.SIGTERM)  # pizero saves a checkpoint and exits 143
+        try:
+            text, _ = process.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            text, _ = process.communicate()
+    result = {"env": name, "budget_s": seconds, "wall_s": round(time.time() - started, 1),
+              "exit_code": process.returncode, "final": last_json(text), "output_tail": text[-1500:]}
+    metrics_path = run_dir / "metrics.jsonl"
+    rows = [json.loads(line) for line in metrics_path.read_text().splitlines()] if metrics_path.exists() else []
+    if rows:
+        steady = sorted(row["iteration_time_s"] for row in rows[len(rows) // 2:])
+        result.update(iterations=rows[-1]["iteration"], first_mean_score=rows[0]["mean_score"],
+                      last_mean_score=rows[-1]["mean_score"], median_iteration_s=steady[len(steady) // 2],
+                      first_iteration_s=rows[0]["iteration_time_s"])
+        evaluation = run([python, "-m", "pizero_ray.cli", "eval", str(run_dir), "--episodes", "1000", "--json"],
+                         env, 300)
+        result["eval"] = last_json(evaluation["output_tail"]) or evaluation
+    return result
+
+
+def check(args) -> dict:
+    gpus = gpu_names()
+    if not gpus and not args.cpu_rehearsal:
+        print("device-check: no NVIDIA GPU on this machine (nvidia-smi lists none): nothing to check")
+        raise SystemExit(0)
+    python, env, installed = python_environment(args)
+    out = Path(tempfile.mkdtemp(prefix="pizero-device-check-"))
+    report = {"date": datetime.date.today().isoformat(), "gpus": gpus or ["none (CPU rehearsal)"],
+              "cpu_cores": os.cpu_count(), "python": installed, "commit": _commit()}
+    steps = [
+        ("gpu_tests", lambda: run([python, "-m", "pytest", "-q", "-m", "gpu", "-p", "no:cacheprovider",
+                                   "tests/test_gpu.py"], env, args.test_seconds)),
+        ("noise_cpu_vs_gpu",
+         lambda: {"skipped": "no GPU"} if args.cpu_rehearsal else noise_across_backends(python, env)),
+        ("bench", lambda: _bench(python, env, args)),
+    ] + [(f"train_{name}", lambda name=name, extra=extra: train_for(
+        python, env, name, extra, args.train_seconds, 0.0 if args.cpu_rehearsal else 1.0, out))
+        for name, extra in TRAININGS]
+    for name, step in steps:
+        print(f"device-check: {name} ...", file=sys.stderr, flush=True)
+        report[name] = step()
+        print(f"device-check: {name}: {_summary(name, report[name])}", file=sys.stderr, flush=True)
+    return report
+
+
+def _bench(python: str, env: dict, args) -> dict:
+    command = [python, "-m", "pizero_ray.cli", "bench", "--quick", "--json",
+               "--gpus", "0" if args.cpu_rehearsal else "1"]
+    outcome = run(command, env, args.bench_seconds)
+    outcome["result"] = last_json(outcome["output_tail"]) if outcome["exit_code"] == 0 else None
+    return outcome
+
+
+def _commit() -> str:
+    if os.environ.get("PIZERO_COMMIT"):  # a copy of the tree without .git says which commit it is
+        return os.environ["PIZERO_COMMIT"]
+    try:
+        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    except OSError:  # no git on the machine
+        return "unknown"
+    return head.stdout.strip() or "unknown"
+
+
+def _summary(name: str, result: dict) -> str:
+    if name == "gpu_tests":
+        counts = re.findall(r"\d+ (?:passed|failed|skipped|error)", result["output_tail"])
+        return ", ".join(counts) or f"exit {result['exit_code']}"
+    if name == "noise_cpu_vs_gpu":
+        return f"{result.get('differing_values', '?')} of {result.get('noise_values', '?')} values differ"
+    if name == "bench":
+        bench = result.get("result") or {}
+        return (f"exit {result['exit_code']}, {result['seconds']} s; rollout agent-steps/s "
+                f"{bench.get('rollout_agent_steps_per_s', '?')}, trainer iteration (2 workers) "
+                f"{bench.get('trainer_iteration_s_2_workers', '?')} s")
+    evaluation = result.get("eval") or {}
+    return (f"{result.get('iterations', 0)} iterations in {result['wall_s']} s "
+            f"(median {result.get('median_iteration_s', '?')} s), eval {evaluation.get('mean_score', '?')}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--python", help="an interpreter with a CUDA JAX and the project's dependencies "
+                        "(default: install the gpu extra into .venv)")
+    parser.add_argument("--wheels", help="offline: a folder of wheels of what --python lacks")
+    parser.add_argument("--train-seconds", type=float, default=75.0,
+                        help="wall-clock budget of each training, its start and compile included")
+    parser.add_argument("--bench-seconds", type=float, default=150.0)
+    parser.add_argument("--test-seconds", type=float, default=150.0)
+    parser.add_argument("--out", default=str(ROOT / "docs" / "bench"), help="folder for the JSON")
+    parser.add_argument("--cpu-rehearsal", action="store_true", help="run every step on the CPU (tests the script)")
+    args = parser.parse_args(argv)
+    started = time.time()
+    report = check(args)
+    report["total_s"] = round(time.time() - started, 1)
+    kind = re.sub(r"[^a-z0-9]+", "-", report["gpus"][0].split(",")[0].lower()).strip("-")
+    path = Path(args.out) / f"{report['date']}-device-check-{kind}.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n")
+    print(json.dumps({name: _summary(name, report[name]) for name in report
+                      if name == "gpu_tests" or name.startswith(("noise", "bench", "train_"))}, indent=2))
+    print(f"device-check: wrote {path} ({report['total_s']} s)")
+    failed = report["gpu_tests"]["exit_code"] != 0 and not args.cpu_rehearsal
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
