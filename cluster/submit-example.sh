@@ -8,6 +8,9 @@
 #   cluster/submit-example.sh [RUN_DIR]     # default: runs/cluster-example-<time> in the repo
 #   cluster/local-cluster.sh stop
 #
+# PIZERO_EXAMPLE_TARGET (default 200) and PIZERO_EXAMPLE_STOP_AFTER (15) set
+# the total iterations and where the second job is stopped (the tests shorten it).
+#
 # The run dir must be absolute: a Ray job's entrypoint runs in a temporary
 # copy of --working-dir, so a relative path would point into that copy.
 set -euo pipefail
@@ -25,9 +28,9 @@ case $run_dir in
     *) run_dir="$PWD/$run_dir" ;;  # make it absolute here, before Ray changes the working dir
 esac
 stamp=$(date +%s)
-first_iterations=5   # the first job trains this far
-target=200           # the second job aims here and is stopped part-way; the third gets there
-stop_after=15        # stop the second job once this many iterations are done
+first_iterations=5                              # the first job trains this far
+target=${PIZERO_EXAMPLE_TARGET:-200}            # the second job aims here and is stopped part-way; the third gets there
+stop_after=${PIZERO_EXAMPLE_STOP_AFTER:-15}     # stop the second job once this many iterations are done
 # A tiny agent (--preset tiny) with a population big enough that an iteration
 # takes a moment; the same options for every job.
 run_options=(--workers 2 --checkpoint-every 10 --no-progress)

@@ -1,7 +1,14 @@
 import os
+import shutil
+import tempfile
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+# One JAX compile cache for the session, made here (never ~/.cache from an earlier
+# run): `pizero` subprocesses without --compile-cache use it too, and reuse each
+# other's programs as the workers do.
+SESSION_COMPILE_CACHE = tempfile.mkdtemp(prefix="pizero-test-jax-cache-")
+os.environ["PIZERO_COMPILE_CACHE"] = SESSION_COMPILE_CACHE
 
 import jax  # noqa: E402
 import pytest  # noqa: E402
@@ -28,9 +35,10 @@ def tsp_env():
 
 
 @pytest.fixture(scope="session")
-def compile_cache_dir(tmp_path_factory):
+def compile_cache_dir():
     """One persistent JAX cache for the session: workers after the first skip the compile."""
-    return str(tmp_path_factory.mktemp("jax-cache"))
+    yield SESSION_COMPILE_CACHE
+    shutil.rmtree(SESSION_COMPILE_CACHE, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")

@@ -58,34 +58,23 @@ def _iterations(path):
     return [row["iteration"] for row in run_dir.read_metrics(path)]
 
 
-def test_driver_sigkilled_mid_run_then_resumed(tmp_path, ray_cluster, compile_cache_dir, reference):
-    path = tmp_path / "run"
-    process = _pizero(["train", "--run-dir", str(path), "--iterations", str(ITERATIONS), *TRAIN_ARGS],
-                      ray_cluster, compile_cache_dir)
-    _wait_for_rows(path, 5, process)
-    process.kill()  # SIGKILL: no handler runs, no emergency save
-    process.wait()
-    assert 3 <= checkpoints.checkpoint_steps(path)[-1] < ITERATIONS
-    result = _resume(path, ray_cluster, compile_cache_dir)
-    assert result["iteration"] == ITERATIONS
-    assert result["parameter_hash"] == reference[1]
-    assert _iterations(path) == list(range(1, ITERATIONS + 1))  # no duplicate, no missing iteration
-
-
-def test_a_driver_killed_before_its_first_periodic_checkpoint_resumes_from_iteration_0(
+def test_driver_sigkilled_before_its_first_periodic_checkpoint_then_resumed(
         tmp_path, ray_cluster, compile_cache_dir, reference):
-    """What a KubeRay retry meets: rows but no periodic checkpoint. The one saved at the start is there."""
+    """SIGKILL mid-run with rows but no periodic checkpoint yet, what a KubeRay retry meets: the one saved
+    before the first iteration is there, and the resumed run ends with the uninterrupted run's parameters."""
     path = tmp_path / "run"
     args = [arg if arg != "3" else "100" for arg in TRAIN_ARGS]  # --checkpoint-every 100
     process = _pizero(["train", "--run-dir", str(path), "--iterations", str(ITERATIONS), *args],
                       ray_cluster, compile_cache_dir)
-    _wait_for_rows(path, 2, process)
-    process.kill()
+    _wait_for_rows(path, 3, process)
+    process.kill()  # SIGKILL: no handler runs, no emergency save
     process.wait()
     assert checkpoints.checkpoint_steps(path) == [0]
     result = _resume(path, ray_cluster, compile_cache_dir)
+    assert result["iteration"] == ITERATIONS
     assert result["parameter_hash"] == reference[1]
-    assert _iterations(path) == list(range(1, ITERATIONS + 1))
+    assert _iterations(path) == list(range(1, ITERATIONS + 1))  # no duplicate, no missing iteration
+    assert [record["row"]["iteration"] for record in _dropped(path)][:3] == [1, 2, 3]  # the cut rows are kept
 
 
 def test_sigterm_saves_a_checkpoint_and_resume_matches(tmp_path, ray_cluster, compile_cache_dir, reference):
