@@ -139,9 +139,10 @@ def _fake_workers(monkeypatch, hang_on=None, part_delay_s=0.0, sigterm_on_seed=N
 
     ``hang_on``: (seed, first pair) of a chunk that never finishes; ``part_delay_s``:
     how long ``gradient_part`` takes; ``sigterm_on_seed``: ``gradient_part`` of that
-    seed first sends SIGTERM to this (the driver's) process, then hangs.
+    seed first sends SIGTERM to this (the driver's) process, once, then hangs.
     """
     import os
+    import tempfile
 
     import envs
     from pizero_ray import rollout, workers
@@ -149,6 +150,7 @@ def _fake_workers(monkeypatch, hang_on=None, part_delay_s=0.0, sigterm_on_seed=N
     chunk = CONFIG.chunk_size
     size = rollout.flat_params(CONFIG, envs.make(CONFIG.env))[1].size
     driver_pid = os.getpid()
+    signalled = os.path.join(tempfile.mkdtemp(prefix="pizero-fake-sigterm-"), "sent")
 
     class FakeWorker:  # defined in a function: Ray pickles it by value
         def ready(self):
@@ -172,7 +174,11 @@ def _fake_workers(monkeypatch, hang_on=None, part_delay_s=0.0, sigterm_on_seed=N
 
             import numpy as np
             if seed == sigterm_on_seed:
-                os.kill(driver_pid, signal.SIGTERM)
+                try:  # one SIGTERM in all, whichever chunk's part comes first: a second one means "hurry"
+                    os.close(os.open(signalled, os.O_CREAT | os.O_EXCL))
+                    os.kill(driver_pid, signal.SIGTERM)
+                except FileExistsError:
+                    pass
                 time.sleep(3600)
             time.sleep(part_delay_s)
             return np.zeros(size, np.float32)
