@@ -125,14 +125,21 @@ def pair_episode_key(key: jax.Array, pair_index: jax.Array) -> jax.Array:
 
 
 def centered_ranks(x: jax.Array, valid: jax.Array | None = None) -> jax.Array:
-    """Ranks scaled to [-0.5, 0.5] (Salimans et al. 2017); ties broken by position.
+    """Ranks scaled to [-0.5, 0.5] (Salimans et al. 2017); tied scores share their average rank.
 
+    Ties matter for integer scores (goals covered, coins): broken by position,
+    a pair whose members tie would get a non-zero weight, and a population that
+    ties throughout would step along -sum z_i, a random direction. With average
+    ranks a tied pair weighs 0 and an all-tied population gives no step.
     Entries where ``valid`` is False take no rank and come back as 0.
     """
-    flat = x.reshape(-1)
+    flat = x.reshape(-1).astype(jnp.float32)
     valid_flat = jnp.ones(flat.shape, bool) if valid is None else jnp.broadcast_to(valid, x.shape).reshape(-1)
-    order = jnp.argsort(jnp.where(valid_flat, flat, jnp.inf), stable=True)  # invalid entries rank last
-    ranks = jnp.empty_like(flat, dtype=jnp.float32).at[order].set(jnp.arange(flat.size, dtype=jnp.float32))
+    keyed = jnp.where(valid_flat, flat, jnp.inf)  # invalid entries rank last
+    ordered = jnp.sort(keyed)
+    first = jnp.searchsorted(ordered, keyed, side="left")  # entries below this one
+    last = jnp.searchsorted(ordered, keyed, side="right") - 1  # ... and up to its last tie
+    ranks = (first + last).astype(jnp.float32) / 2.0
     count = jnp.sum(valid_flat)
     shaped = ranks / jnp.maximum(count - 1, 1).astype(jnp.float32) - 0.5
     return jnp.where(valid_flat, shaped, 0.0).reshape(x.shape)

@@ -38,6 +38,39 @@ def test_centered_ranks():
     assert float(ranks.sum()) == pytest.approx(0.0, abs=1e-6)
 
 
+def _position_ranks(x):
+    """The old shaping (ties broken by position): the reference for untied scores."""
+    flat = np.asarray(x, np.float64).reshape(-1)
+    ranks = np.empty(flat.size)
+    ranks[np.argsort(flat, kind="stable")] = np.arange(flat.size)
+    return (ranks / (flat.size - 1) - 0.5).reshape(np.shape(x))
+
+
+def test_untied_scores_rank_as_before():
+    scores = np.random.default_rng(3).standard_normal((50, 2)).astype(np.float32)
+    np.testing.assert_allclose(es.centered_ranks(jnp.asarray(scores)), _position_ranks(scores), atol=1e-6)
+
+
+def test_a_tied_pair_gets_weight_zero_and_ties_share_their_average_rank():
+    scores = jnp.array([[2.0, 2.0], [0.0, 1.0], [1.0, 3.0]])  # pair 0 ties; 1.0 appears twice
+    weights = es.pair_weights(scores, "centered_ranks")
+    assert float(weights[0]) == 0.0
+    ranks = es.centered_ranks(scores)
+    assert float(ranks[1, 1]) == float(ranks[2, 0]) == pytest.approx(1.5 / 5 - 0.5)
+    assert float(ranks.sum()) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_population_that_ties_throughout_gives_no_update_direction():
+    scores = jnp.zeros((8, 2))  # every member covers 0 goals, as early in Sokoban
+    weights = es.pair_weights(scores, "centered_ranks")
+    np.testing.assert_array_equal(weights, np.zeros(8))
+    valid = jnp.array([True] * 6 + [False] * 2)
+    np.testing.assert_array_equal(es.pair_weights(scores, "centered_ranks", valid), np.zeros(8))
+    perturbation = es.Perturbation(((30,),), 0)
+    direction = es.pseudo_gradient(es.iteration_key(5), weights, 0.1, perturbation, chunk_size=4)
+    np.testing.assert_array_equal(direction, np.zeros(30))
+
+
 def test_chunked_gradient_equals_the_direct_sum():
     key = es.iteration_key(99)
     n, size, sigma = 12, 50, 0.1
