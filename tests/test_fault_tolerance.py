@@ -135,7 +135,7 @@ def _wait_until_dead(ray, actor, timeout_s: float = 30.0) -> None:
 
 
 def _fake_workers(monkeypatch, hang_on=None, part_delay_s=0.0, sigterm_on_seed=None):
-    """The pool's workers become light fake actors (no JAX): zero scores and zero parts, at once unless told.
+    """The pool's workers become light fake actors (no JAX): untied scores and zero parts, at once unless told.
 
     ``hang_on``: (seed, first pair) of a chunk that never finishes; ``part_delay_s``:
     how long ``gradient_part`` takes; ``sigterm_on_seed``: ``gradient_part`` of that
@@ -165,7 +165,9 @@ def _fake_workers(monkeypatch, hang_on=None, part_delay_s=0.0, sigterm_on_seed=N
             import numpy as np
             if (seed, first_pair) == hang_on:
                 time.sleep(3600)
-            return np.zeros((chunk, 2), np.float32)
+            # Untied scores: with ties every weight would be 0 and no part would be asked of a worker.
+            pairs = np.arange(first_pair, first_pair + chunk, dtype=np.float32)
+            return np.stack([pairs, -pairs], axis=1)
 
         def gradient_part(self, seed, first_pair, weights):
             import os
