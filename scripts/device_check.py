@@ -118,11 +118,13 @@ def python_environment(args) -> tuple[str, dict, dict]:
 
 NOISE_PROBE = """
 import json, jax, numpy as np
-from pizero_ray import es, rollout
+from pizero_ray import es
+from pizero_ray.agent import episodes
+from pizero_ray.es import population
 from pizero_ray.config import build_config
 import envs
 config = build_config("default", env="tsp")
-_, layout = rollout.flat_params(config, envs.make("tsp"))
+_, layout = population.flat_params(config, envs.make("tsp"))
 parts = es.gradient_parts(config, layout.perturbation)
 drawn = {}
 for platform in ("cpu", "gpu"):

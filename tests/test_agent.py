@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from envs.base import EnvSpec, Observation
-from pizero_ray import agent, planner
+from pizero_ray.agent import pizero as agent
+from pizero_ray.agent import planner
 from pizero_ray.config import build_config
 
 

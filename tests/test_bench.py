@@ -2,7 +2,7 @@
 
 import pytest
 
-from pizero_ray import bench
+from pizero_ray.cli import bench
 from pizero_ray.config import build_config
 
 

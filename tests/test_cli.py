@@ -62,8 +62,8 @@ def test_directory_without_config_is_not_a_run(tmp_path, capsys):
 
 
 def test_train_refuses_to_overwrite_a_run(tmp_path, capsys):
-    from pizero_ray import run_dir
     from pizero_ray.config import build_config
+    from pizero_ray.storage import run_dir
 
     run_dir.write_config(tmp_path, build_config("tiny"))
     before = (tmp_path / "config.json").read_text()

@@ -2,7 +2,7 @@
 
 import pytest
 
-from pizero_ray import cli
+from pizero_ray.cli import commands as cli
 from pizero_ray.config import ConfigError, build_config, largest_divisor_at_most
 
 

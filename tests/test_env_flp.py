@@ -193,9 +193,9 @@ def test_bad_parameters_are_one_line_errors(name, args, named):
 
 def test_eval_and_render_from_the_cli(tmp_path, capsys):
     """A run dir without checkpoints holds the untrained agent: enough for the CLI's env paths, no Ray."""
-    from pizero_ray import run_dir
     from pizero_ray.cli import main
     from pizero_ray.config import build_config
+    from pizero_ray.storage import run_dir
 
     path = tmp_path / "run"
     run_dir.write_config(path, build_config("tiny", env="flp-mean"))

@@ -2,8 +2,9 @@
 
 import pytest
 
-from pizero_ray import driver, run_dir
 from pizero_ray.config import build_config
+from pizero_ray.storage import run_dir, runs
+from pizero_ray.trainer import driver
 from tests.conftest import OBJECT_STORE_BYTES
 
 ITERATIONS = 4
@@ -90,10 +91,11 @@ def test_gradient_parts_of_a_dead_worker_are_computed_by_the_driver(ray_session,
     import numpy as np
 
     import envs
-    from pizero_ray import es, rollout
-    from pizero_ray.pool import PoolOptions, WorkerPool
+    from pizero_ray import es
+    from pizero_ray.es import population
+    from pizero_ray.trainer.pool import PoolOptions, WorkerPool
 
-    theta, layout = rollout.flat_params(CONFIG, envs.make(CONFIG.env))
+    theta, layout = population.flat_params(CONFIG, envs.make(CONFIG.env))
     update = es.make_update(CONFIG, layout.perturbation)
     seed = es.iteration_seed(CONFIG.seed, 0)
     pool = WorkerPool(CONFIG, PoolOptions(max_workers=1, compile_cache=compile_cache_dir))
@@ -145,10 +147,11 @@ def _fake_workers(monkeypatch, hang_on=None, part_delay_s=0.0, sigterm_on_seed=N
     import tempfile
 
     import envs
-    from pizero_ray import rollout, workers
+    from pizero_ray.es import population
+    from pizero_ray.trainer import workers
 
     chunk = CONFIG.chunk_size
-    size = rollout.flat_params(CONFIG, envs.make(CONFIG.env))[1].size
+    size = population.flat_params(CONFIG, envs.make(CONFIG.env))[1].size
     driver_pid = os.getpid()
     signalled = os.path.join(tempfile.mkdtemp(prefix="pizero-fake-sigterm-"), "sent")
 
@@ -201,7 +204,7 @@ def test_a_stop_interrupts_the_wait_for_slow_gradient_parts(ray_session, monkeyp
 
     import numpy as np
 
-    from pizero_ray.pool import Interrupted, PoolOptions, WorkerPool
+    from pizero_ray.trainer.pool import Interrupted, PoolOptions, WorkerPool
 
     _fake_workers(monkeypatch, part_delay_s=3600)
     pool = WorkerPool(CONFIG, PoolOptions(max_workers=1))  # the chunk timeout is 300 s
@@ -228,7 +231,7 @@ def test_sigterm_while_waiting_for_gradient_parts_saves_the_last_finished_iterat
     assert time.time() - started < 120
     assert result["stopped_by"] == "SIGTERM" and result["iteration"] == 1
     assert [row["iteration"] for row in rows] == [1]
-    assert driver.load_run(tmp_path).iteration == 1  # the checkpoint saved on the way out
+    assert runs.load_run(tmp_path).iteration == 1  # the checkpoint saved on the way out
 
 
 def test_a_straggler_hung_past_the_chunk_timeout_is_killed_and_replaced(ray_session, monkeypatch):
@@ -236,7 +239,7 @@ def test_a_straggler_hung_past_the_chunk_timeout_is_killed_and_replaced(ray_sess
 
     import numpy as np
 
-    from pizero_ray.pool import PoolOptions, WorkerPool
+    from pizero_ray.trainer.pool import PoolOptions, WorkerPool
 
     _fake_workers(monkeypatch, hang_on=(1, 2))  # chunk 1 of the iteration with seed 1
     timeout_s = 1.5

@@ -26,12 +26,14 @@ def test_kept_and_regenerated_noise_are_bit_identical_on_the_gpu():
     import jax
 
     import envs
-    from pizero_ray import es, local_devices, rollout
+    from pizero_ray import es
+    from pizero_ray.es import population
+    from pizero_ray.trainer import local_devices
 
     config = build_config("default", env="tsp", population=64, chunk_size=32)
     chunks = local_devices.ChunkEvaluator(config, max_devices=1)
     assert chunks.devices[0].platform == "gpu"
-    theta, layout = rollout.flat_params(config, envs.make("tsp"))
+    theta, layout = population.flat_params(config, envs.make("tsp"))
     seed, first_pair = 12345, 32
     scores = chunks.evaluate(np.asarray(theta), seed, first_pair)
     assert scores.shape == (32, 2) and np.isfinite(scores).all()
@@ -49,7 +51,9 @@ def test_one_and_two_gpu_workers_give_the_same_parameters(ray_cluster, tmp_path,
     import ray
 
     import envs
-    from pizero_ray import driver, rollout, run_dir, workers
+    from pizero_ray.es import population
+    from pizero_ray.storage import run_dir, runs
+    from pizero_ray.trainer import driver, workers
 
     node = ray_cluster.add_node(num_cpus=2, num_gpus=1, resources={"gpu_test_node": 2})
     ray_cluster.wait_for_nodes()
@@ -70,6 +74,6 @@ def test_one_and_two_gpu_workers_give_the_same_parameters(ray_cluster, tmp_path,
             hashes[count] = result["parameter_hash"]
     finally:
         ray_cluster.remove_node(node)
-    untrained = np.asarray(rollout.flat_params(config, envs.make("tsp"))[0])
+    untrained = np.asarray(population.flat_params(config, envs.make("tsp"))[0])
     assert hashes[1] == hashes[2]
-    assert hashes[1] != driver.parameter_hash(untrained)  # training moved the parameters
+    assert hashes[1] != runs.parameter_hash(untrained)  # training moved the parameters

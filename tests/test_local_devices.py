@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 import envs
-from pizero_ray import es, local_devices, rollout
+from pizero_ray import es
 from pizero_ray.config import build_config
+from pizero_ray.es import population
+from pizero_ray.trainer import local_devices
 
 CONFIG = build_config("tiny", population=8, chunk_size=2)
 FIRST_PAIRS = range(0, CONFIG.population, CONFIG.chunk_size)
@@ -19,8 +21,8 @@ SEED = 12345
 def theta_and_reference():
     """Initial parameters, and every chunk's scores from the plain jitted functions on the default device."""
     env = envs.make(CONFIG.env, **CONFIG.env_kwargs())
-    theta, layout = rollout.flat_params(CONFIG, env)
-    evaluate = rollout.make_pair_evaluator(CONFIG, env, layout)
+    theta, layout = population.flat_params(CONFIG, env)
+    evaluate = population.make_pair_evaluator(CONFIG, env, layout)
     noise = es.gradient_parts(CONFIG, layout.perturbation).noise
     reference = [np.asarray(evaluate(theta, np.uint32(SEED), np.arange(first, first + CONFIG.chunk_size),
                                      noise(np.uint32(SEED), np.int32(first))))
@@ -51,7 +53,7 @@ def test_chunks_dealt_over_both_devices_score_as_on_one(chunks, theta_and_refere
 def test_a_chunks_gradient_part_from_kept_noise_equals_the_regenerated_one(chunks, theta_and_reference):
     theta, _ = theta_and_reference
     weights = np.linspace(-1, 1, CONFIG.chunk_size).astype(np.float32)
-    layout = rollout.flat_params(CONFIG, envs.make(CONFIG.env, **CONFIG.env_kwargs()))[1]
+    layout = population.flat_params(CONFIG, envs.make(CONFIG.env, **CONFIG.env_kwargs()))[1]
     driver_parts = es.gradient_parts(CONFIG, layout.perturbation)  # as the driver regenerates a part
     for first in (0, 2):  # one chunk on each device, as two threads of a worker would run them
         chunks.evaluate(theta, SEED, first)
@@ -117,7 +119,7 @@ def test_concurrent_calls_each_borrow_a_device_and_score_as_on_one(chunks, theta
 
 
 def test_a_worker_with_two_cpus_runs_two_devices(ray_session, compile_cache_dir, theta_and_reference):
-    from pizero_ray import workers
+    from pizero_ray.trainer import workers
 
     theta, reference = theta_and_reference
     actor = workers.start_worker(CONFIG.to_json(), 2.0, 0.0, compile_cache_dir)
@@ -135,7 +137,7 @@ def test_a_worker_with_two_cpus_runs_two_devices(ray_session, compile_cache_dir,
 
 _CLAIM = """
 import json, os, sys
-from pizero_ray.local_devices import CoreClaim
+from pizero_ray.trainer.local_devices import CoreClaim
 claim = CoreClaim.claim(int(sys.argv[1]), sys.argv[2])
 print(json.dumps([sorted(claim.cores), sorted(os.sched_getaffinity(0))]), flush=True)
 sys.stdin.readline()  # hold the claim until told to go

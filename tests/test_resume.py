@@ -10,9 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from pizero_ray import checkpoints, driver, run_dir
 from pizero_ray.cli import main
 from pizero_ray.config import build_config
+from pizero_ray.storage import checkpoints, run_dir
+from pizero_ray.trainer import driver
 
 ITERATIONS = 12
 # Big enough that an iteration takes a noticeable moment, so the driver can be hit mid-run.

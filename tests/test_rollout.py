@@ -3,14 +3,16 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from pizero_ray import es, rollout
+from pizero_ray import es
+from pizero_ray.agent import episodes
 from pizero_ray.config import build_config
+from pizero_ray.es import population
 
 
 def pair_scorer(config, env):
     """(theta, scores(seed, first_pair) of the chunk from first_pair on), as a worker computes them."""
-    theta, layout = rollout.flat_params(config, env)
-    evaluate = rollout.make_pair_evaluator(config, env, layout)
+    theta, layout = population.flat_params(config, env)
+    evaluate = population.make_pair_evaluator(config, env, layout)
     noise = es.gradient_parts(config, layout.perturbation).noise  # the function that regenerates the noise
 
     def scores(seed, first_pair=0):
@@ -46,14 +48,14 @@ def test_both_halves_of_a_pair_play_the_same_episodes(tsp_env):
 
 
 def test_run_episodes_scores_every_episode(tiny_config, tsp_env):
-    theta, layout = rollout.flat_params(tiny_config, tsp_env)
-    scores = rollout.make_evaluator(tiny_config, tsp_env, layout, 7)(theta, jax.random.PRNGKey(0))
+    theta, layout = population.flat_params(tiny_config, tsp_env)
+    scores = episodes.make_evaluator(tiny_config, tsp_env, layout.unravel, 7)(theta, jax.random.PRNGKey(0))
     assert scores.shape == (7,)
     assert np.all(np.asarray(scores) < -1.0)
 
 
 def test_flat_parameters_round_trip(tiny_config, tsp_env):
-    theta, layout = rollout.flat_params(tiny_config, tsp_env)
+    theta, layout = population.flat_params(tiny_config, tsp_env)
     assert theta.dtype == jnp.float32 and theta.shape == (layout.size,)
     params = layout.unravel(theta)
     assert set(params) == {"encoder", "memory", "decoder", "dynamics", "reward", "prediction"}
@@ -71,11 +73,11 @@ def test_low_rank_members_play_exactly_theta_plus_the_expanded_noise(tsp_env, en
 
     config = build_config("tiny", env=env_name, perturbation_rank=2, sigma=0.5, population=3, chunk_size=3, **extra)
     env = tsp_env if env_name == "tsp" else envs.make(env_name)
-    theta, layout = rollout.flat_params(config, env)
+    theta, layout = population.flat_params(config, env)
     scores = pair_scorer(config, env)[1](9)
     key = es.iteration_key(np.uint32(9))
     member_score = jax.jit(lambda member, episode_key: jnp.mean(
-        rollout.run_episodes(layout.unravel(member), config, env, episode_key, config.trials)))
+        episodes.run_episodes(layout.unravel(member), config, env, episode_key, config.trials)))
     expected = []
     for i in range(3):
         z = es.expand_noise(es.pair_noise(key, i, layout.perturbation.noise_size), layout.perturbation)

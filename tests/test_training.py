@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 
 import envs
-from pizero_ray import driver, rollout, run_dir
 from pizero_ray.cli import main
 from pizero_ray.config import build_config
+from pizero_ray.es import population
+from pizero_ray.storage import run_dir, runs
+from pizero_ray.trainer import driver
 
 
 def _train(path, iterations, workers, compile_cache_dir, cpus_per_worker=1.0, **overrides):
@@ -36,7 +38,7 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(ray_session, tmp_path,
     info = _inspect(path, capsys)
     assert info["iteration"] == 3 and info["parameter_hash"] == result["parameter_hash"]
     assert info["checkpoints"] == [0, 2, 3]  # 0: saved before the first iteration
-    untrained = driver.parameter_hash(np.asarray(rollout.flat_params(build_config("tiny"), envs.make("tsp"))[0]))
+    untrained = runs.parameter_hash(np.asarray(population.flat_params(build_config("tiny"), envs.make("tsp"))[0]))
     assert info["parameter_hash"] != untrained  # three updates moved the parameters
 
     assert main(["eval", str(path), "--episodes", "16", "--seed", "1", "--json"]) == 0
@@ -87,13 +89,14 @@ def test_gradient_parts_from_workers_equal_the_update_in_one_process(ray_session
     import jax.numpy as jnp
 
     import envs
-    from pizero_ray import es, rollout
+    from pizero_ray import es
+    from pizero_ray.es import population
 
     trained = _train(tmp_path / "run", 2, 2, compile_cache_dir)
     config = build_config("tiny")
     env = envs.make(config.env, **config.env_kwargs())
-    theta, layout = rollout.flat_params(config, env)
-    evaluate = rollout.make_pair_evaluator(config, env, layout)
+    theta, layout = population.flat_params(config, env)
+    evaluate = population.make_pair_evaluator(config, env, layout)
     update = es.make_update(config, layout.perturbation)
     state = update.optimizer.init(theta)
     for iteration in range(2):
@@ -103,6 +106,6 @@ def test_gradient_parts_from_workers_equal_the_update_in_one_process(ray_session
                                 update.parts.noise(np.uint32(seed), np.int32(first))))
             for first in range(0, config.population, config.chunk_size)])
         theta, state, _ = update(theta, state, seed, jnp.asarray(scores), jnp.ones(config.population, bool))
-    assert driver.parameter_hash(np.asarray(theta)) == trained["parameter_hash"]
+    assert runs.parameter_hash(np.asarray(theta)) == trained["parameter_hash"]
     rows = run_dir.read_metrics(tmp_path / "run")
     assert [row["gradient_parts_on_driver"] for row in rows[1:]] == [0, 0]  # every part came from a worker

@@ -14,9 +14,9 @@ import signal
 import sys
 from pathlib import Path
 
-from pizero_ray import run_dir as rundir
-from pizero_ray.checkpoints import CheckpointError
 from pizero_ray.config import DECODER_INPUTS, PRESETS, ConfigError, build_config
+from pizero_ray.storage import run_dir as rundir
+from pizero_ray.storage.checkpoints import CheckpointError
 
 DEFAULT_ITERATIONS = 400
 
@@ -210,8 +210,8 @@ def _train_config(args):
 
 
 def _run_options(args, iterations: int):
-    from pizero_ray.compile_cache import DEFAULT_DIR
-    from pizero_ray.driver import RunOptions
+    from pizero_ray.trainer.compile_cache import DEFAULT_DIR
+    from pizero_ray.trainer.driver import RunOptions
 
     if not 0 < args.min_fraction <= 1:
         raise UsageError(f"--min-fraction must be in (0, 1], got {args.min_fraction}")
@@ -294,7 +294,7 @@ def _progress_callbacks(options, no_progress: bool):
 
 
 def _run_training(run_path: Path, config, options, no_progress: bool) -> int:
-    from pizero_ray import driver
+    from pizero_ray.trainer import driver
 
     on_start, on_iteration, close = _progress_callbacks(options, no_progress)
     try:
@@ -325,7 +325,7 @@ def _cmd_chaos(args) -> int:
     """The determinism guarantee, shown: a clean run and one whose workers are SIGKILLed mid-iteration."""
     import numpy as np
 
-    from pizero_ray import driver
+    from pizero_ray.trainer import driver
 
     config = _train_config(args)
     base = rundir.resolve(args.run_dir)
@@ -366,7 +366,7 @@ def _cmd_resume(args) -> int:
 
 
 def _cmd_eval(args) -> int:
-    from pizero_ray.evaluate import evaluate_run
+    from pizero_ray.cli.evaluate import evaluate_run
 
     result = evaluate_run(_existing_run(args.run_dir), args.episodes, args.seed, dict(args.env_arg))
     if args.json:
@@ -378,16 +378,16 @@ def _cmd_eval(args) -> int:
 
 
 def _cmd_inspect(args) -> int:
-    from pizero_ray import checkpoints, driver
+    from pizero_ray.storage import checkpoints, runs
 
     run_path = _existing_run(args.run_dir)
-    config, iteration, theta, _, _ = driver.load_run(run_path)
+    config, iteration, theta, _, _ = runs.load_run(run_path)
     result = {
         "run_dir": str(run_path),
         "env": config.env,
         "iteration": iteration,
         "parameters": int(theta.size),
-        "parameter_hash": driver.parameter_hash(theta),
+        "parameter_hash": runs.parameter_hash(theta),
         "checkpoints": checkpoints.checkpoint_steps(run_path),
         "metrics_rows": sum(1 for row in rundir.read_metrics(run_path) if row["iteration"] > 0),
     }
@@ -400,7 +400,7 @@ def _cmd_inspect(args) -> int:
 
 
 def _cmd_render(args) -> int:
-    from pizero_ray import render
+    from pizero_ray.cli import render
 
     out = Path(args.out)
     if out.suffix.lower() not in (".png", ".gif"):
@@ -411,7 +411,8 @@ def _cmd_render(args) -> int:
 
 
 def _cmd_bench(args) -> int:
-    from pizero_ray import bench, local_devices
+    from pizero_ray.cli import bench
+    from pizero_ray.trainer import local_devices
 
     local_devices.configure_cpu_devices(args.devices or local_devices.cpu_count())  # before JAX starts
     plan = bench.QUICK if args.quick else bench.FULL
@@ -428,7 +429,7 @@ def _cmd_bench(args) -> int:
 
 
 def _cmd_plot(args) -> int:
-    from pizero_ray.plot import plot_runs
+    from pizero_ray.cli.plot import plot_runs
 
     paths = [_existing_run(p) for p in args.run_dirs]
     labels = args.labels.split(",") if args.labels else [p.name for p in paths]

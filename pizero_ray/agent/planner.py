@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import mctx
 
-from pizero_ray import networks
+from pizero_ray.agent import networks
 from pizero_ray.config import Config
 
 

@@ -18,7 +18,7 @@ import time
 import numpy as np
 import ray
 
-from pizero_ray import local_devices
+from pizero_ray.trainer import local_devices
 
 
 class RolloutWorker:
@@ -26,7 +26,7 @@ class RolloutWorker:
 
     def __init__(self, config_json: str, compile_cache_dir: str | None, cpu_devices: int = 1, pin_cores: bool = False):
         started = time.time()
-        from pizero_ray import compile_cache
+        from pizero_ray.trainer import compile_cache
 
         self._cores = local_devices.CoreClaim.claim(cpu_devices) if pin_cores else local_devices.CoreClaim((), [])
         local_devices.configure_cpu_devices(cpu_devices)  # before JAX's first computation

@@ -105,7 +105,7 @@ class WorkerPool:
 
     def top_up(self) -> None:
         """Asks Ray for actors up to ``max_workers``; they start when the cluster has room."""
-        from pizero_ray import workers
+        from pizero_ray.trainer import workers
 
         while len(self._workers) < self._options.max_workers:
             actor = workers.start_worker(

@@ -20,11 +20,12 @@ def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None
     """The unperturbed agent on fresh episodes; ``env_args`` override the run's (e.g. other levels)."""
     import jax
 
-    from pizero_ray import driver, rollout
+    from pizero_ray.agent import episodes as play
+    from pizero_ray.storage import runs
 
-    config, iteration, theta, env, layout = driver.load_run(run_path, env_args)
+    config, iteration, theta, env, layout = runs.load_run(run_path, env_args)
     key = jax.random.PRNGKey(seed)
-    evaluator = rollout.make_evaluator(config, env, layout, episodes, final_states=True)
+    evaluator = play.make_evaluator(config, env, layout.unravel, episodes, final_states=True)
     scores, final_states = evaluator(theta, key)
     scores = np.asarray(scores, dtype=np.float64)
     low, high = confidence_interval95(scores)
@@ -42,6 +43,6 @@ def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None
         for name, values in env.episode_metrics(final_states).items():
             result[f"mean_{name}"] = float(np.mean(values))
     if env.references is not None:
-        initial_states, _ = jax.vmap(env.reset)(rollout.episode_reset_keys(key, episodes))
+        initial_states, _ = jax.vmap(env.reset)(play.episode_reset_keys(key, episodes))
         result.update(env.references(initial_states, scores))
     return result

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pizero_ray import run_dir as rundir
+from pizero_ray.storage import run_dir as rundir
 
 
 def plot_runs(run_paths: list[Path], labels: list[str], out: Path, title: str | None = None) -> None:

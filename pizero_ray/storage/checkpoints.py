@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from pizero_ray import run_dir as rundir
+from pizero_ray.storage import run_dir as rundir
 
 CHECKPOINT_DIR = "checkpoints"
 CORRUPT_DIR = "checkpoints-corrupt"

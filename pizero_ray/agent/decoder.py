@@ -16,9 +16,9 @@ import jax
 import jax.numpy as jnp
 
 from envs.base import EnvSpec
-from pizero_ray import networks
+from pizero_ray.agent import networks
+from pizero_ray.agent.planner import PlanResult
 from pizero_ray.config import Config
-from pizero_ray.planner import PlanResult
 
 
 def context_size(config: Config) -> int:

@@ -14,25 +14,25 @@ SIGINT.
 from __future__ import annotations
 
 import functools
-import hashlib
 import json
 import signal
 import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, NamedTuple
+from typing import Callable
 
 import numpy as np
 
-from pizero_ray import checkpoints, compile_cache
-from pizero_ray import run_dir as rundir
-from pizero_ray.config import Config, ConfigError
-from pizero_ray.pool import Interrupted, PoolOptions, TrainingError, WorkerPool
+from pizero_ray.config import Config
+from pizero_ray.storage import checkpoints, runs
+from pizero_ray.storage import run_dir as rundir
+from pizero_ray.trainer import compile_cache
+from pizero_ray.trainer.pool import Interrupted, PoolOptions, TrainingError, WorkerPool
 
 EVAL_SEED = 2_000_003  # fixed held-out episodes for the learning curve
 
-__all__ = ["RunOptions", "TrainingError", "load_run", "parameter_hash", "train"]
+__all__ = ["RunOptions", "TrainingError", "train"]
 
 
 @dataclass(frozen=True)
@@ -71,54 +71,6 @@ class RunOptions:
             pin_cores=self.pin_cores,
             kill_schedule=self.kill_schedule,
         )
-
-
-def parameter_hash(theta: np.ndarray) -> str:
-    return hashlib.sha256(np.ascontiguousarray(theta, dtype="<f4").tobytes()).hexdigest()
-
-
-def _initial_state(config: Config, env):
-    import jax.numpy as jnp
-
-    from pizero_ray import es, rollout
-
-    theta, layout = rollout.flat_params(config, env)
-    update = es.make_update(config, layout.perturbation)
-    return np.asarray(theta), update.optimizer.init(jnp.asarray(theta)), layout, update
-
-
-class LoadedRun(NamedTuple):
-    config: Config
-    iteration: int
-    theta: np.ndarray  # flat parameters
-    env: object  # envs.Environment
-    layout: object  # rollout.FlatParams
-
-
-def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
-    """A run dir's newest good checkpoint (or its initial parameters), with its environment.
-
-    ``env_args`` override the run's environment parameters (evaluate on other
-    levels, say); they may not change the agent's shape.
-    """
-    import envs
-
-    config = rundir.read_config(run_path)
-    trained_env = envs.make(config.env, **config.env_kwargs())
-    theta, opt_state, layout, _ = _initial_state(config, trained_env)
-    env = trained_env
-    if env_args:
-        try:
-            env = envs.make(config.env, **{**config.env_kwargs(), **env_args})
-        except ValueError as error:
-            raise ConfigError(str(error)) from None
-        # A different horizon is fine (longer games, say); different shapes are not.
-        if env.spec._replace(horizon=0) != trained_env.spec._replace(horizon=0):
-            raise ConfigError(f"env args {env_args} change the environment's shapes: the trained agent cannot act")
-    restored = checkpoints.restore_latest(run_path, theta, opt_state)
-    if restored is None:
-        return LoadedRun(config, 0, theta, env, layout)
-    return LoadedRun(config, restored.iteration, restored.theta, env, layout)
 
 
 class _StopRequest:
@@ -164,13 +116,15 @@ def train(
     import ray
 
     import envs
-    from pizero_ray import es, ray_setup, rollout
+    from pizero_ray import es
+    from pizero_ray.agent import episodes
+    from pizero_ray.trainer import ray_setup
 
     # Ray first: it forks its processes before JAX starts its threads.
     connection = ray_setup.init(options.address)
     compile_cache.enable(options.compile_cache)
     env = envs.make(config.env, **config.env_kwargs())
-    theta, opt_state, layout, update = _initial_state(config, env)
+    theta, opt_state, layout, update = runs.initial_state(config, env)
     # Refuses a run dir whose progress it cannot continue (unless options.restart); never deletes a metrics row.
     start_iteration, theta, opt_state, metrics = checkpoints.prepare_resume(run_path, theta, opt_state,
                                                                            restart=options.restart)
@@ -178,7 +132,7 @@ def train(
 
     evaluator = None
     if options.eval_every > 0:
-        evaluator = rollout.make_evaluator(config, env, layout, options.eval_episodes)
+        evaluator = episodes.make_evaluator(config, env, layout.unravel, options.eval_episodes)
 
     pool = WorkerPool(config, options.pool_options())
     writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)
@@ -189,7 +143,7 @@ def train(
     def save() -> None:
         host_theta = np.asarray(theta_device)
         meta = {"iteration": iteration, "seed": config.seed, "config": json.loads(config.to_json()),
-                "metrics_rows": iteration, "parameter_hash": parameter_hash(host_theta)}
+                "metrics_rows": iteration, "parameter_hash": runs.parameter_hash(host_theta)}
         writer.save(iteration, host_theta, opt_state, meta)
 
     if on_start:
@@ -261,5 +215,5 @@ def train(
         writer.close()
         pool.shutdown()
     stopped_by = signal.Signals(stop.signal).name if stop.signal is not None else None
-    return {"iteration": iteration, "parameter_hash": parameter_hash(np.asarray(theta_device)),
+    return {"iteration": iteration, "parameter_hash": runs.parameter_hash(np.asarray(theta_device)),
             "stopped_by": stopped_by, "workers_killed": pool.kills}

@@ -17,9 +17,9 @@ import jax
 import jax.numpy as jnp
 
 from envs.base import EnvSpec, Observation
-from pizero_ray import decoder, networks, planner
+from pizero_ray.agent import decoder, networks, planner
+from pizero_ray.agent.planner import PlanResult
 from pizero_ray.config import Config
-from pizero_ray.planner import PlanResult
 
 
 class StepInfo(NamedTuple):

@@ -21,12 +21,13 @@ def episode_frames(run_path: Path, episodes: int, seed: int, env_args: dict | No
     """Frames of ``episodes`` episodes played by the unperturbed agent, each up to its end."""
     import jax
 
-    from pizero_ray import driver, rollout
+    from pizero_ray.agent import episodes as play
+    from pizero_ray.storage import runs
 
-    config, _, theta, env, layout = driver.load_run(run_path, env_args)
+    config, _, theta, env, layout = runs.load_run(run_path, env_args)
     if env.render is None:
         raise ConfigError(f"environment {config.env!r} has no renderer")
-    record = jax.jit(lambda th, key: rollout.record_episodes(layout.unravel(th), config, env, key, episodes))
+    record = jax.jit(lambda th, key: play.record_episodes(layout.unravel(th), config, env, key, episodes))
     trajectory = record(theta, jax.random.PRNGKey(seed))
     dones = np.asarray(trajectory.dones)
     frames = []

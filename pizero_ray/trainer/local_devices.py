@@ -162,15 +162,16 @@ class ChunkEvaluator:
         from jax.sharding import SingleDeviceSharding
 
         import envs
-        from pizero_ray import es, rollout
+        from pizero_ray import es
+        from pizero_ray.es import population
 
         self.config = config
         env = envs.make(config.env, **config.env_kwargs())
-        theta, layout = rollout.flat_params(config, env)
+        theta, layout = population.flat_params(config, env)
         self.parameters = layout.size
         self.agent_steps_per_pair = 2 * config.trials * env.spec.horizon
         self.devices = jax.local_devices()[:max_devices]
-        evaluate = rollout.make_pair_evaluator(config, env, layout)
+        evaluate = population.make_pair_evaluator(config, env, layout)
         self._parts = es.gradient_parts(config, layout.perturbation)
         self._kept = NoiseCache(config.chunk_size * layout.perturbation.noise_size * 4)
 

@@ -1,4 +1,4 @@
-"""Episodes and the population rollout: the hot path, pure JAX, one jitted function.
+"""The population rollout: the hot path, pure JAX, one jitted function.
 
 ``make_pair_evaluator`` builds the function a worker runs: for a chunk of pair
 indices and their noise, it plays the same episodes with theta + sigma z and
@@ -19,9 +19,11 @@ import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
 from envs.base import Environment
-from pizero_ray import agent, es, networks
+from pizero_ray.agent import networks, pizero
+from pizero_ray.agent.episodes import run_episodes
+from pizero_ray.agent.networks import Params
 from pizero_ray.config import Config
-from pizero_ray.networks import Params
+from pizero_ray.es import noise as es_noise
 
 
 class FlatParams(NamedTuple):
@@ -29,14 +31,15 @@ class FlatParams(NamedTuple):
 
     size: int
     unravel: Callable[[jax.Array], Params]
-    perturbation: es.Perturbation
+    perturbation: es_noise.Perturbation
 
 
 def flat_params(config: Config, env: Environment) -> tuple[jax.Array, FlatParams]:
     """Initial parameters (from config.seed) as a flat float32 vector, and its layout."""
-    params = agent.init_params(jax.random.PRNGKey(config.seed), config, env.spec)
+    params = pizero.init_params(jax.random.PRNGKey(config.seed), config, env.spec)
     theta, unravel = ravel_pytree(params)
-    perturbation = es.Perturbation(tuple(leaf.shape for leaf in jax.tree.leaves(params)), config.perturbation_rank)
+    shapes = tuple(leaf.shape for leaf in jax.tree.leaves(params))
+    perturbation = es_noise.Perturbation(shapes, config.perturbation_rank)
     return theta.astype(jnp.float32), FlatParams(int(theta.size), unravel, perturbation)
 
 
@@ -52,58 +55,9 @@ def perturbed_params(theta: jax.Array, noise: jax.Array, step: jax.Array, layout
     scale = step / jnp.sqrt(jnp.float32(perturbation.rank))
     members = [
         networks.LowRankPerturbed(leaf, scale * part[0], part[1]) if isinstance(part, tuple) else leaf + step * part
-        for leaf, part in zip(leaves, es.split_noise(noise, perturbation))
+        for leaf, part in zip(leaves, es_noise.split_noise(noise, perturbation))
     ]
     return jax.tree.unflatten(treedef, members)
-
-
-def episode_reset_keys(key: jax.Array, num_episodes: int) -> jax.Array:
-    """The reset keys ``run_episodes`` uses, so evaluations can rebuild its instances."""
-    return jax.random.split(jax.random.fold_in(key, 0), num_episodes)
-
-
-class Trajectory(NamedTuple):
-    """What ``record_episodes`` returns: everything a renderer needs, time-major."""
-
-    initial_state: object  # env state pytree, leading dim E
-    states: object  # env state after each step, leading dims [T, E]
-    actions: jax.Array  # [T, E] (or [T, E, d] for continuous actions)
-    rewards: jax.Array  # [T, E], zero after the episode ended
-    dones: jax.Array  # [T, E]: the episode had ended by this step
-    scores: jax.Array  # [E]
-
-
-def _play(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int, record: bool):
-    act_key = jax.random.fold_in(key, 1)
-    initial_states, observations = jax.vmap(env.reset)(episode_reset_keys(key, num_episodes))
-    memory = agent.initial_memory(config, num_episodes)
-    done = jnp.zeros((num_episodes,), bool)
-    score = jnp.zeros((num_episodes,), jnp.float32)
-
-    def step(carry, t):
-        states, observations, memory, done, score = carry
-        action, memory, _ = agent.act(params, config, env.spec, memory, observations, jax.random.fold_in(act_key, t))
-        states, observations, reward, step_done = jax.vmap(env.step)(states, action)
-        reward = jnp.where(done, 0.0, reward)
-        done = done | step_done
-        out = (states, action, reward, done) if record else None
-        return (states, observations, memory, done, score + reward), out
-
-    carry = (initial_states, observations, memory, done, score)
-    carry, recorded = jax.lax.scan(step, carry, jnp.arange(env.spec.horizon))
-    final_states, score = carry[0], carry[-1]
-    return initial_states, final_states, score, recorded
-
-
-def run_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:
-    """Plays ``num_episodes`` episodes to the horizon; returns their scores [E]."""
-    return _play(params, config, env, key, num_episodes, record=False)[2]
-
-
-def record_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> Trajectory:
-    """Like ``run_episodes`` (same episodes for the same key), keeping every step."""
-    initial_states, _, scores, (states, actions, rewards, dones) = _play(params, config, env, key, num_episodes, True)
-    return Trajectory(initial_states, states, actions, rewards, dones, scores)
 
 
 def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
@@ -122,7 +76,7 @@ def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
         return jnp.mean(run_episodes(params, config, env, episode_key, config.trials))
 
     def pair_scores(theta: jax.Array, key: jax.Array, pair_index: jax.Array, noise: jax.Array) -> jax.Array:
-        episode_key = es.pair_episode_key(key, pair_index)  # both halves see the same episodes
+        episode_key = es_noise.pair_episode_key(key, pair_index)  # both halves see the same episodes
         if layout.perturbation.rank > 0:
             steps = jnp.array([config.sigma, -config.sigma], jnp.float32)
             return jax.vmap(low_rank_member_score, in_axes=(None, None, 0, None))(theta, noise, steps, episode_key)
@@ -130,17 +84,7 @@ def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
         return jax.vmap(member_score, in_axes=(0, None))(members, episode_key)
 
     def evaluate(theta: jax.Array, iteration_seed: jax.Array, pair_indices: jax.Array, noise: jax.Array):
-        key = es.iteration_key(iteration_seed)
+        key = es_noise.iteration_key(iteration_seed)
         return jax.vmap(pair_scores, in_axes=(None, None, 0, 0))(theta, key, pair_indices, noise)
-
-    return jax.jit(evaluate)
-
-
-def make_evaluator(config: Config, env: Environment, layout: FlatParams, num_episodes: int, final_states: bool = False):
-    """jit(theta [D], key) -> scores [num_episodes] of the unperturbed agent (and final states if asked)."""
-
-    def evaluate(theta: jax.Array, key: jax.Array):
-        _, last, scores, _ = _play(layout.unravel(theta), config, env, key, num_episodes, record=False)
-        return (scores, last) if final_states else scores
 
     return jax.jit(evaluate)

@@ -96,10 +96,10 @@ class CompiledRollout:
 def compile_rollout(config: Config, max_devices: int | None = None) -> CompiledRollout:
     """The population rollout as a worker runs it, compiled for this process's devices (or the first few)."""
     import envs
-    from pizero_ray import local_devices
-    from pizero_ray import rollout as rollout_lib
+    from pizero_ray.es import population
+    from pizero_ray.trainer import local_devices
 
-    theta, _ = rollout_lib.flat_params(config, envs.make(config.env, **config.env_kwargs()))
+    theta, _ = population.flat_params(config, envs.make(config.env, **config.env_kwargs()))
     theta = np.asarray(theta)
     started = time.perf_counter()
     chunks = local_devices.ChunkEvaluator(config, max_devices)
@@ -171,10 +171,10 @@ def driver_update(config: Config, repeats: int) -> float:
 
     import envs
     from pizero_ray import es
-    from pizero_ray import rollout as rollout_lib
+    from pizero_ray.es import population
 
     env = envs.make(config.env)
-    theta, layout = rollout_lib.flat_params(config, env)
+    theta, layout = population.flat_params(config, env)
     update = es.make_update(config, layout.perturbation)
     state = update.optimizer.init(theta)
     scores = jnp.asarray(np.random.default_rng(0).normal(size=(config.population, 2)), jnp.float32)
@@ -191,7 +191,8 @@ def driver_update(config: Config, repeats: int) -> float:
 def trainer(config: Config, workers: int, iterations: int, cache_dir: str, cpus_per_worker: int = 1,
             gpus_per_worker: float = 0.0) -> dict:
     """The Ray trainer on the same work: median iteration and update time, first-result latency."""
-    from pizero_ray import driver, run_dir
+    from pizero_ray.storage import run_dir
+    from pizero_ray.trainer import driver
 
     with tempfile.TemporaryDirectory(prefix="pizero-bench-") as tmp:
         path = Path(tmp)
@@ -217,10 +218,11 @@ def worker_memory(config: Config, cache_dir: str) -> float:
     import ray
 
     import envs
-    from pizero_ray import es, workers
-    from pizero_ray import rollout as rollout_lib
+    from pizero_ray import es
+    from pizero_ray.es import population
+    from pizero_ray.trainer import workers
 
-    theta, _ = rollout_lib.flat_params(config, envs.make(config.env, **config.env_kwargs()))
+    theta, _ = population.flat_params(config, envs.make(config.env, **config.env_kwargs()))
     actor = workers.start_worker(config.to_json(), 1.0, 0.0, cache_dir)
     try:
         ray.get(actor.ready.remote(), timeout=600)
@@ -256,7 +258,7 @@ def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
     """Every measurement of ``plan``; the Ray trainer's W workers share ``worker_gpus`` GPUs (0: CPU workers)."""
     import jax
 
-    from pizero_ray import local_devices, ray_setup
+    from pizero_ray.trainer import local_devices, ray_setup
 
     ray_setup.init(None)  # before JAX starts its threads
     devices = len(jax.local_devices())

@@ -1,0 +1,4 @@
+"""The agent's math: networks, the planner over the learned abstract model, the decoder, episodes.
+
+Pure JAX over parameter pytrees; imports neither Ray nor Orbax (tests/test_layers.py).
+"""

@@ -1,0 +1,75 @@
+"""Playing whole episodes with an agent's parameters: scores, or every step for a renderer."""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from envs.base import Environment
+from pizero_ray.agent import pizero as agent
+from pizero_ray.agent.networks import Params
+from pizero_ray.config import Config
+
+
+def episode_reset_keys(key: jax.Array, num_episodes: int) -> jax.Array:
+    """The reset keys ``run_episodes`` uses, so evaluations can rebuild its instances."""
+    return jax.random.split(jax.random.fold_in(key, 0), num_episodes)
+
+
+class Trajectory(NamedTuple):
+    """What ``record_episodes`` returns: everything a renderer needs, time-major."""
+
+    initial_state: object  # env state pytree, leading dim E
+    states: object  # env state after each step, leading dims [T, E]
+    actions: jax.Array  # [T, E] (or [T, E, d] for continuous actions)
+    rewards: jax.Array  # [T, E], zero after the episode ended
+    dones: jax.Array  # [T, E]: the episode had ended by this step
+    scores: jax.Array  # [E]
+
+
+def _play(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int, record: bool):
+    act_key = jax.random.fold_in(key, 1)
+    initial_states, observations = jax.vmap(env.reset)(episode_reset_keys(key, num_episodes))
+    memory = agent.initial_memory(config, num_episodes)
+    done = jnp.zeros((num_episodes,), bool)
+    score = jnp.zeros((num_episodes,), jnp.float32)
+
+    def step(carry, t):
+        states, observations, memory, done, score = carry
+        action, memory, _ = agent.act(params, config, env.spec, memory, observations, jax.random.fold_in(act_key, t))
+        states, observations, reward, step_done = jax.vmap(env.step)(states, action)
+        reward = jnp.where(done, 0.0, reward)
+        done = done | step_done
+        out = (states, action, reward, done) if record else None
+        return (states, observations, memory, done, score + reward), out
+
+    carry = (initial_states, observations, memory, done, score)
+    carry, recorded = jax.lax.scan(step, carry, jnp.arange(env.spec.horizon))
+    final_states, score = carry[0], carry[-1]
+    return initial_states, final_states, score, recorded
+
+
+def run_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:
+    """Plays ``num_episodes`` episodes to the horizon; returns their scores [E]."""
+    return _play(params, config, env, key, num_episodes, record=False)[2]
+
+
+def record_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> Trajectory:
+    """Like ``run_episodes`` (same episodes for the same key), keeping every step."""
+    initial_states, _, scores, (states, actions, rewards, dones) = _play(params, config, env, key, num_episodes, True)
+    return Trajectory(initial_states, states, actions, rewards, dones, scores)
+
+
+def make_evaluator(
+    config: Config, env: Environment, unravel: Callable[[jax.Array], Params], num_episodes: int,
+    final_states: bool = False,
+):
+    """jit(theta [D], key) -> scores [num_episodes] of the unperturbed agent (and final states if asked)."""
+
+    def evaluate(theta: jax.Array, key: jax.Array):
+        _, last, scores, _ = _play(unravel(theta), config, env, key, num_episodes, record=False)
+        return (scores, last) if final_states else scores
+
+    return jax.jit(evaluate)

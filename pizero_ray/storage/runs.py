@@ -1,0 +1,66 @@
+"""Loading a run to act with it: its config, its newest good checkpoint, its environment.
+
+What eval, render and inspect need, without the Ray trainer.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from pizero_ray.config import Config, ConfigError
+from pizero_ray.storage import checkpoints
+from pizero_ray.storage import run_dir as rundir
+
+
+def parameter_hash(theta: np.ndarray) -> str:
+    return hashlib.sha256(np.ascontiguousarray(theta, dtype="<f4").tobytes()).hexdigest()
+
+
+def initial_state(config: Config, env):
+    """Initial flat parameters (from config.seed), optimiser state, layout and update of a run."""
+    import jax.numpy as jnp
+
+    from pizero_ray import es
+    from pizero_ray.es import population
+
+    theta, layout = population.flat_params(config, env)
+    update = es.make_update(config, layout.perturbation)
+    return np.asarray(theta), update.optimizer.init(jnp.asarray(theta)), layout, update
+
+
+class LoadedRun(NamedTuple):
+    config: Config
+    iteration: int
+    theta: np.ndarray  # flat parameters
+    env: object  # envs.Environment
+    layout: object  # population.FlatParams
+
+
+def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
+    """A run dir's newest good checkpoint (or its initial parameters), with its environment.
+
+    ``env_args`` override the run's environment parameters (evaluate on other
+    levels, say); they may not change the agent's shape.
+    """
+    import envs
+
+    config = rundir.read_config(run_path)
+    trained_env = envs.make(config.env, **config.env_kwargs())
+    theta, opt_state, layout, _ = initial_state(config, trained_env)
+    env = trained_env
+    if env_args:
+        try:
+            env = envs.make(config.env, **{**config.env_kwargs(), **env_args})
+        except ValueError as error:
+            raise ConfigError(str(error)) from None
+        # A different horizon is fine (longer games, say); different shapes are not.
+        if env.spec._replace(horizon=0) != trained_env.spec._replace(horizon=0):
+            raise ConfigError(f"env args {env_args} change the environment's shapes: the trained agent cannot act")
+    restored = checkpoints.restore_latest(run_path, theta, opt_state)
+    if restored is None:
+        return LoadedRun(config, 0, theta, env, layout)
+    return LoadedRun(config, restored.iteration, restored.theta, env, layout)

@@ -1,0 +1,1 @@
+"""The Ray trainer: the driver, the elastic worker pool, worker actors and their local devices."""

@@ -1,0 +1,59 @@
+"""The layers, checked: the math imports neither Ray nor Orbax, and loading a run needs no Ray."""
+
+import json
+import subprocess
+import sys
+
+MATH = ["pizero_ray.config", "pizero_ray.agent", "pizero_ray.agent.networks", "pizero_ray.agent.planner",
+        "pizero_ray.agent.decoder", "pizero_ray.agent.pizero", "pizero_ray.agent.episodes", "pizero_ray.es",
+        "pizero_ray.es.noise", "pizero_ray.es.shaping", "pizero_ray.es.strategy", "pizero_ray.es.population",
+        "envs"]
+
+
+def _loaded_after_importing(modules: list[str]) -> set[str]:
+    """Top-level packages in sys.modules after importing ``modules`` in a fresh interpreter."""
+    code = ("import importlib, json, sys\n"
+            f"for name in {modules!r}: importlib.import_module(name)\n"
+            "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules} | "
+            "{m for m in sys.modules if m.startswith('pizero_ray.')})))")
+    env_vars = {"JAX_PLATFORMS": "cpu", "PATH": "/usr/bin:/bin"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env_vars)
+    return set(json.loads(out.stdout))
+
+
+def test_the_math_imports_neither_ray_nor_orbax_nor_the_shell():
+    loaded = _loaded_after_importing(MATH)
+    assert "jax" in loaded and "mctx" in loaded  # the check sees real imports
+    assert not {"ray", "orbax"} & loaded
+    shell = {m for m in loaded if m.startswith(("pizero_ray.trainer", "pizero_ray.storage", "pizero_ray.cli"))}
+    assert not shell
+
+
+def test_evaluating_a_saved_run_imports_neither_ray_nor_the_trainer(tmp_path):
+    """eval, render and inspect load a run through storage: a checkpoint is read without Ray."""
+    code = f"""
+import json, sys
+from pathlib import Path
+import envs
+from pizero_ray.config import build_config
+from pizero_ray.storage import checkpoints, run_dir, runs
+from pizero_ray.cli.evaluate import evaluate_run
+path = Path({str(tmp_path)!r})
+config = build_config("tiny", env="tsp")
+run_dir.write_config(path, config)
+theta, opt_state, _, _ = runs.initial_state(config, envs.make("tsp"))
+writer = checkpoints.CheckpointWriter(path)
+writer.save(3, theta, opt_state, {{"iteration": 3}})
+writer.close()
+result = evaluate_run(path, episodes=4, seed=0)
+loaded = {{m.split(".")[0] for m in sys.modules}} | {{m for m in sys.modules if m.startswith("pizero_ray.")}}
+print(json.dumps({{"iteration": result["iteration"], "loaded": sorted(loaded)}}))
+"""
+    env_vars = {"JAX_PLATFORMS": "cpu", "PATH": "/usr/bin:/bin"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env_vars)
+    assert out.returncode == 0, out.stderr[-2000:]
+    report = json.loads(out.stdout.strip().splitlines()[-1])
+    assert report["iteration"] == 3  # the checkpoint was read (through Orbax) ...
+    assert "orbax" in report["loaded"]
+    assert "ray" not in report["loaded"]  # ... without Ray
+    assert not [m for m in report["loaded"] if m.startswith("pizero_ray.trainer")]
