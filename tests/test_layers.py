@@ -3,6 +3,9 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
+
+REPO = str(Path(__file__).resolve().parents[1])  # this checkout, not whichever one pip installed
 
 MATH = ["pizero_ray.config", "pizero_ray.agent", "pizero_ray.agent.networks", "pizero_ray.agent.planner",
         "pizero_ray.agent.decoder", "pizero_ray.agent.pizero", "pizero_ray.agent.episodes", "pizero_ray.es",
@@ -16,7 +19,7 @@ def _loaded_after_importing(modules: list[str]) -> set[str]:
             f"for name in {modules!r}: importlib.import_module(name)\n"
             "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules} | "
             "{m for m in sys.modules if m.startswith('pizero_ray.')})))")
-    env_vars = {"JAX_PLATFORMS": "cpu", "PATH": "/usr/bin:/bin"}
+    env_vars = {"JAX_PLATFORMS": "cpu", "PATH": "/usr/bin:/bin", "PYTHONPATH": REPO}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env_vars)
     return set(json.loads(out.stdout))
 
@@ -49,7 +52,7 @@ result = evaluate_run(path, episodes=4, seed=0)
 loaded = {{m.split(".")[0] for m in sys.modules}} | {{m for m in sys.modules if m.startswith("pizero_ray.")}}
 print(json.dumps({{"iteration": result["iteration"], "loaded": sorted(loaded)}}))
 """
-    env_vars = {"JAX_PLATFORMS": "cpu", "PATH": "/usr/bin:/bin"}
+    env_vars = {"JAX_PLATFORMS": "cpu", "PATH": "/usr/bin:/bin", "PYTHONPATH": REPO}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env_vars)
     assert out.returncode == 0, out.stderr[-2000:]
     report = json.loads(out.stdout.strip().splitlines()[-1])
