@@ -8,9 +8,8 @@ import jax
 import jax.numpy as jnp
 
 from envs.base import Environment
-from pizero_ray.agent import pizero as agent
 from pizero_ray.agent.networks import Params
-from pizero_ray.config import Config
+from pizero_ray.agent.pizero import Agent
 
 
 def episode_reset_keys(key: jax.Array, num_episodes: int) -> jax.Array:
@@ -29,16 +28,16 @@ class Trajectory(NamedTuple):
     scores: jax.Array  # [E]
 
 
-def _play(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int, record: bool):
+def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int, record: bool):
     act_key = jax.random.fold_in(key, 1)
     initial_states, observations = jax.vmap(env.reset)(episode_reset_keys(key, num_episodes))
-    memory = agent.initial_memory(config, num_episodes)
+    memory = agent.initial_memory(num_episodes)
     done = jnp.zeros((num_episodes,), bool)
     score = jnp.zeros((num_episodes,), jnp.float32)
 
     def step(carry, t):
         states, observations, memory, done, score = carry
-        action, memory, _ = agent.act(params, config, env.spec, memory, observations, jax.random.fold_in(act_key, t))
+        action, memory, _ = agent.act(params, memory, observations, jax.random.fold_in(act_key, t))
         states, observations, reward, step_done = jax.vmap(env.step)(states, action)
         reward = jnp.where(done, 0.0, reward)
         done = done | step_done
@@ -51,25 +50,25 @@ def _play(params: Params, config: Config, env: Environment, key: jax.Array, num_
     return initial_states, final_states, score, recorded
 
 
-def run_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:
+def run_episodes(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:
     """Plays ``num_episodes`` episodes to the horizon; returns their scores [E]."""
-    return _play(params, config, env, key, num_episodes, record=False)[2]
+    return _play(agent, params, env, key, num_episodes, record=False)[2]
 
 
-def record_episodes(params: Params, config: Config, env: Environment, key: jax.Array, num_episodes: int) -> Trajectory:
+def record_episodes(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int) -> Trajectory:
     """Like ``run_episodes`` (same episodes for the same key), keeping every step."""
-    initial_states, _, scores, (states, actions, rewards, dones) = _play(params, config, env, key, num_episodes, True)
+    initial_states, _, scores, (states, actions, rewards, dones) = _play(agent, params, env, key, num_episodes, True)
     return Trajectory(initial_states, states, actions, rewards, dones, scores)
 
 
 def make_evaluator(
-    config: Config, env: Environment, unravel: Callable[[jax.Array], Params], num_episodes: int,
+    agent: Agent, env: Environment, unravel: Callable[[jax.Array], Params], num_episodes: int,
     final_states: bool = False,
 ):
     """jit(theta [D], key) -> scores [num_episodes] of the unperturbed agent (and final states if asked)."""
 
     def evaluate(theta: jax.Array, key: jax.Array):
-        _, last, scores, _ = _play(unravel(theta), config, env, key, num_episodes, record=False)
+        _, last, scores, _ = _play(agent, unravel(theta), env, key, num_episodes, record=False)
         return (scores, last) if final_states else scores
 
     return jax.jit(evaluate)

@@ -6,12 +6,14 @@ One step, for a batch of B episodes:
   action = decoder(search result, action features)    (concrete action)
   memory = GRU(memory, observation and taken action)
 
-All parameters form one pytree (``init_params``); ``act`` is pure and jittable.
+``make_agent(config, spec)`` binds the configuration once and returns
+``Agent(init, initial_memory, act)``: all parameters form one pytree
+(``init``), and ``act`` is pure and jittable.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -27,31 +29,11 @@ class StepInfo(NamedTuple):
     plan: PlanResult  # zeros when there is no planner
 
 
-def init_params(key: jax.Array, config: Config, spec: EnvSpec) -> networks.Params:
-    o, m, h = spec.observation_size, config.memory_size, config.hidden_size
-    latent, k = config.latent_size, config.num_abstract_actions
-    keys = jax.random.split(key, 6)
-    params = {
-        "encoder": networks.mlp_init(keys[0], (o + m, h, latent)),
-        "memory": networks.gru_init(keys[1], o + spec.action_input_size, m),
-        "decoder": decoder.init(keys[2], config, spec),
-    }
-    if config.planner != "none":
-        # With chance nodes the dynamics GRU reads the abstract chance outcome;
-        # the abstract action first leads to an afterstate.
-        dynamics_input = config.chance_outcomes if config.chance_outcomes > 0 else k
-        params["dynamics"] = networks.gru_init(keys[3], dynamics_input, latent)
-        params["reward"] = networks.dense_init(keys[4], latent, 1)
-        params["prediction"] = networks.mlp_init(keys[5], (latent, h, 1 + k))
-        if config.chance_outcomes > 0:
-            after_keys = jax.random.split(jax.random.fold_in(key, 1), 2)
-            params["afterstate"] = networks.gru_init(after_keys[0], k, latent)
-            params["afterstate_prediction"] = networks.mlp_init(after_keys[1], (latent, h, 1 + config.chance_outcomes))
-    return params
-
-
-def initial_memory(config: Config, batch: int) -> jax.Array:
-    return jnp.zeros((batch, config.memory_size), jnp.float32)
+class Agent(NamedTuple):
+    init: Callable[[jax.Array], networks.Params]  # key -> parameters
+    initial_memory: Callable[[int], jax.Array]  # batch size -> memory [B, M]
+    # (params, memory [B, M], observation, key) -> (action, new memory, StepInfo)
+    act: Callable[[networks.Params, jax.Array, Observation, jax.Array], tuple[jax.Array, jax.Array, StepInfo]]
 
 
 def encode(params: networks.Params, observation: Observation, memory: jax.Array) -> jax.Array:
@@ -59,31 +41,31 @@ def encode(params: networks.Params, observation: Observation, memory: jax.Array)
     return jnp.tanh(networks.mlp(params["encoder"], x))  # same range as the dynamics GRU's states
 
 
-def act(
-    params: networks.Params,
-    config: Config,
-    spec: EnvSpec,
-    memory: jax.Array,
-    observation: Observation,
-    key: jax.Array,
-) -> tuple[jax.Array, jax.Array, StepInfo]:
-    """Chooses actions for a batch of episodes; returns (action, new memory, info)."""
-    plan_key, action_key = jax.random.split(key)
-    latent = encode(params, observation, memory)
-    batch = latent.shape[0]
-    if config.planner == "none":
-        k = config.num_abstract_actions
-        search = PlanResult(jnp.zeros((batch,), jnp.int32), jnp.zeros((batch, k)), jnp.zeros((batch,)))
-    else:
-        search = planner.plan(params, config, latent, plan_key)
-    ctx = decoder.context(config, latent, search)
-    if spec.discrete:
-        scores = decoder.action_scores(params["decoder"], config, ctx, observation.action_features)
-        action = decoder.select_discrete(config, scores, observation.action_mask, action_key)
-        taken = jnp.take_along_axis(observation.action_features, action[:, None, None], axis=1)[:, 0]
-    else:
-        action = decoder.continuous_action(params["decoder"], config, spec, ctx, action_key)
-        taken = action
-    memory_input = jnp.concatenate([observation.vector, taken], axis=-1)
-    memory = networks.gru(params["memory"], memory, memory_input)
-    return action, memory, StepInfo(latent, search)
+def make_agent(config: Config, spec: EnvSpec) -> Agent:
+    plan = planner.make_planner(config)
+    decode = decoder.make_decoder(config, spec)
+    memory_size = config.memory_size
+    encoder_sizes = (spec.observation_size + memory_size, config.hidden_size, config.latent_size)
+
+    def init(key: jax.Array) -> networks.Params:
+        keys = jax.random.split(key, 6)  # 3-5 (and a fold of the key) are the abstract model's
+        params = {
+            "encoder": networks.mlp_init(keys[0], encoder_sizes),
+            "memory": networks.gru_init(keys[1], spec.observation_size + spec.action_input_size, memory_size),
+            "decoder": decode.init(keys[2]),
+        }
+        return {**params, **planner.init(key, config)}
+
+    def initial_memory(batch: int) -> jax.Array:
+        return jnp.zeros((batch, memory_size), jnp.float32)
+
+    def act(params: networks.Params, memory: jax.Array, observation: Observation, key: jax.Array):
+        """Chooses actions for a batch of episodes; returns (action, new memory, info)."""
+        plan_key, action_key = jax.random.split(key)
+        latent = encode(params, observation, memory)
+        search = plan(params, latent, plan_key)
+        action, taken = decode.act(params["decoder"], latent, search, observation, action_key)
+        memory = networks.gru(params["memory"], memory, jnp.concatenate([observation.vector, taken], axis=-1))
+        return action, memory, StepInfo(latent, search)
+
+    return Agent(init, initial_memory, act)

@@ -2,12 +2,16 @@
 
 The abstract model is never fitted to the environment: its states, rewards
 and values are whatever makes the whole agent score well under ES.
+
+``make_planner(config)`` binds the search and its hyperparameters once, as
+mctx's policies and optax's transformations are bound: the planner it
+returns is a pure function (params, latent [B, L], key) -> PlanResult.
 """
 
 from __future__ import annotations
 
 import functools
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -21,6 +25,30 @@ class PlanResult(NamedTuple):
     abstract_action: jax.Array  # [B] int32: the search's choice
     visit_probs: jax.Array  # [B, k]: the search's action distribution
     root_value: jax.Array  # [B]: the search's value estimate at the root
+
+
+Planner = Callable[[networks.Params, jax.Array, jax.Array], PlanResult]
+
+
+def init(key: jax.Array, config: Config) -> networks.Params:
+    """The abstract model's parameters (none without a planner); ``key`` is the agent's key."""
+    if config.planner == "none":
+        return {}
+    latent, h, k = config.latent_size, config.hidden_size, config.num_abstract_actions
+    keys = jax.random.split(key, 6)  # the agent's split: 0-2 are the encoder's, memory's and decoder's
+    # With chance nodes the dynamics GRU reads the abstract chance outcome;
+    # the abstract action first leads to an afterstate.
+    dynamics_input = config.chance_outcomes if config.chance_outcomes > 0 else k
+    params = {
+        "dynamics": networks.gru_init(keys[3], dynamics_input, latent),
+        "reward": networks.dense_init(keys[4], latent, 1),
+        "prediction": networks.mlp_init(keys[5], (latent, h, 1 + k)),
+    }
+    if config.chance_outcomes > 0:
+        after_keys = jax.random.split(jax.random.fold_in(key, 1), 2)
+        params["afterstate"] = networks.gru_init(after_keys[0], k, latent)
+        params["afterstate_prediction"] = networks.mlp_init(after_keys[1], (latent, h, 1 + config.chance_outcomes))
+    return params
 
 
 def predict(params: networks.Params, latent: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -43,94 +71,131 @@ def afterstate(params: networks.Params, latent: jax.Array, abstract_action: jax.
     return after, out[..., 0], out[..., 1:]
 
 
-def plan(params: networks.Params, config: Config, latent: jax.Array, key: jax.Array) -> PlanResult:
-    """Runs the configured search from a batch of abstract states [B, L]."""
-    k = config.num_abstract_actions
-    value, logits = predict(params, latent)
-    root = mctx.RootFnOutput(prior_logits=logits, value=value, embedding=latent)
+def make_planner(config: Config) -> Planner:
+    """The configured search, its hyperparameters bound: (params, latent [B, L], key) -> PlanResult."""
+    k, discount = config.num_abstract_actions, config.abstract_discount
+    if config.planner == "none":
+        return functools.partial(no_search, num_actions=k)
     if config.chance_outcomes > 0:
-        return _plan_with_chance(params, config, root, key)
+        return functools.partial(
+            stochastic_muzero_search, num_actions=k, num_outcomes=config.chance_outcomes,
+            num_simulations=config.num_simulations, dirichlet_fraction=config.root_noise,
+            pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base, discount=discount)
+    if config.planner == "muzero" and config.root_noise == 0:
+        return functools.partial(
+            muzero_search_without_root_noise, num_actions=k, num_simulations=config.num_simulations,
+            pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base, discount=discount)
+    if config.planner == "muzero":
+        return functools.partial(
+            muzero_search, num_actions=k, num_simulations=config.num_simulations,
+            dirichlet_fraction=config.root_noise, pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base,
+            discount=discount)
+    return functools.partial(gumbel_search, num_actions=k, num_simulations=config.num_simulations,
+                             gumbel_scale=config.root_noise, discount=discount)
 
+
+def no_search(params: networks.Params, latent: jax.Array, key: jax.Array, *, num_actions: int) -> PlanResult:
+    """Without a planner: an all-zero result (the decoder then reads the abstract state only)."""
+    del params, key
+    batch = latent.shape[0]
+    return PlanResult(jnp.zeros((batch,), jnp.int32), jnp.zeros((batch, num_actions)), jnp.zeros((batch,)))
+
+
+def _root(params: networks.Params, latent: jax.Array) -> mctx.RootFnOutput:
+    value, logits = predict(params, latent)
+    return mctx.RootFnOutput(prior_logits=logits, value=value, embedding=latent)
+
+
+def _recurrent_fn(num_actions: int, discount: float):
     def recurrent_fn(params, rng, action, embedding):
         del rng
-        reward, next_latent = dynamics(params, embedding, action, k)
+        reward, next_latent = dynamics(params, embedding, action, num_actions)
         next_value, next_logits = predict(params, next_latent)
-        discount = jnp.full_like(reward, config.abstract_discount)
-        output = mctx.RecurrentFnOutput(reward=reward, discount=discount, prior_logits=next_logits, value=next_value)
+        output = mctx.RecurrentFnOutput(reward=reward, discount=jnp.full_like(reward, discount),
+                                        prior_logits=next_logits, value=next_value)
         return output, next_latent
 
-    if config.planner == "muzero" and config.root_noise == 0:
-        summary = _muzero_search_without_root_noise(params, config, root, recurrent_fn, key).summary()
-        abstract_action = jnp.argmax(summary.visit_probs, axis=-1).astype(jnp.int32)
-        return PlanResult(abstract_action, summary.visit_probs, summary.value)
-    if config.planner == "muzero":
-        output = mctx.muzero_policy(
-            params, key, root, recurrent_fn, config.num_simulations,
-            dirichlet_fraction=config.root_noise,
-            pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base,
-        )
-        # mctx samples its action from the visit counts; PiZero acts on the
-        # most visited abstract action (first index on ties) so that, with no
-        # root noise, the agent is a deterministic function of its parameters.
-        abstract_action = jnp.argmax(output.action_weights, axis=-1)
-    elif config.planner == "gumbel":
-        output = mctx.gumbel_muzero_policy(
-            params, key, root, recurrent_fn, config.num_simulations,
-            max_num_considered_actions=k, gumbel_scale=config.root_noise,
-        )
-        abstract_action = output.action
-    else:
-        raise ValueError(f"plan() needs a search planner, got {config.planner!r}")
+    return recurrent_fn
+
+
+def muzero_search(params, latent, key, *, num_actions: int, num_simulations: int, dirichlet_fraction: float,
+                  pb_c_init: float, pb_c_base: float, discount: float) -> PlanResult:
+    """mctx's MuZero (PUCT) policy with Dirichlet root noise."""
+    output = mctx.muzero_policy(
+        params, key, _root(params, latent), _recurrent_fn(num_actions, discount), num_simulations,
+        dirichlet_fraction=dirichlet_fraction, pb_c_init=pb_c_init, pb_c_base=pb_c_base,
+    )
+    # mctx samples its action from the visit counts; PiZero acts on the
+    # most visited abstract action (first index on ties) so that, with no
+    # root noise, the agent is a deterministic function of its parameters.
+    abstract_action = jnp.argmax(output.action_weights, axis=-1)
     root_value = output.search_tree.summary().value
     return PlanResult(abstract_action.astype(jnp.int32), output.action_weights, root_value)
 
 
-def _muzero_search_without_root_noise(params, config: Config, root: mctx.RootFnOutput, recurrent_fn, key):
+def muzero_search_without_root_noise(params, latent, key, *, num_actions: int, num_simulations: int,
+                                     pb_c_init: float, pb_c_base: float, discount: float) -> PlanResult:
     """Exactly ``mctx.muzero_policy``'s tree with a Dirichlet fraction of 0, without sampling the noise.
 
     muzero_policy draws Dirichlet noise (gamma rejection sampling) even when it
     weighs it by 0; at our batch sizes that costs about 5% of a rollout. Same
     key split and the same prior logits (log of the softmax), so the same tree.
     """
+    root = _root(params, latent)
     _, _, search_key = jax.random.split(key, 3)
     prior_logits = jnp.log(jnp.maximum(jax.nn.softmax(root.prior_logits), jnp.finfo(root.prior_logits.dtype).tiny))
     selection = functools.partial(
-        mctx.muzero_action_selection, pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base,
+        mctx.muzero_action_selection, pb_c_init=pb_c_init, pb_c_base=pb_c_base,
         qtransform=mctx.qtransform_by_parent_and_siblings,
     )
-    return mctx.search(
-        params=params, rng_key=search_key, root=root.replace(prior_logits=prior_logits), recurrent_fn=recurrent_fn,
+    tree = mctx.search(
+        params=params, rng_key=search_key, root=root.replace(prior_logits=prior_logits),
+        recurrent_fn=_recurrent_fn(num_actions, discount),
         root_action_selection_fn=functools.partial(selection, depth=0), interior_action_selection_fn=selection,
-        num_simulations=config.num_simulations,
+        num_simulations=num_simulations,
     )
+    summary = tree.summary()
+    abstract_action = jnp.argmax(summary.visit_probs, axis=-1).astype(jnp.int32)
+    return PlanResult(abstract_action, summary.visit_probs, summary.value)
 
 
-def _plan_with_chance(params: networks.Params, config: Config, root: mctx.RootFnOutput, key: jax.Array) -> PlanResult:
+def gumbel_search(params, latent, key, *, num_actions: int, num_simulations: int, gumbel_scale: float,
+                  discount: float) -> PlanResult:
+    """mctx's Gumbel MuZero policy, considering every abstract action."""
+    output = mctx.gumbel_muzero_policy(
+        params, key, _root(params, latent), _recurrent_fn(num_actions, discount), num_simulations,
+        max_num_considered_actions=num_actions, gumbel_scale=gumbel_scale,
+    )
+    root_value = output.search_tree.summary().value
+    return PlanResult(output.action.astype(jnp.int32), output.action_weights, root_value)
+
+
+def stochastic_muzero_search(params, latent, key, *, num_actions: int, num_outcomes: int, num_simulations: int,
+                             dirichlet_fraction: float, pb_c_init: float, pb_c_base: float,
+                             discount: float) -> PlanResult:
     """Stochastic MuZero search: abstract action -> afterstate -> abstract chance outcome -> state.
 
-    The C chance outcomes are as invented as everything else in the model: ES
+    The chance outcomes are as invented as everything else in the model: ES
     decides what, if anything, they stand for (in 2048, where the tile appears).
     """
-    k, c = config.num_abstract_actions, config.chance_outcomes
 
     def decision_fn(params, rng, action, embedding):
         del rng
-        after, after_value, chance_logits = afterstate(params, embedding, action, k)
+        after, after_value, chance_logits = afterstate(params, embedding, action, num_actions)
         return mctx.DecisionRecurrentFnOutput(chance_logits=chance_logits, afterstate_value=after_value), after
 
     def chance_fn(params, rng, outcome, after):
         del rng
-        reward, next_latent = dynamics(params, after, outcome, c)
+        reward, next_latent = dynamics(params, after, outcome, num_outcomes)
         next_value, next_logits = predict(params, next_latent)
         output = mctx.ChanceRecurrentFnOutput(
-            action_logits=next_logits, value=next_value, reward=reward,
-            discount=jnp.full_like(reward, config.abstract_discount),
+            action_logits=next_logits, value=next_value, reward=reward, discount=jnp.full_like(reward, discount),
         )
         return output, next_latent
 
     output = mctx.stochastic_muzero_policy(
-        params, key, root, decision_fn, chance_fn, config.num_simulations,
-        dirichlet_fraction=config.root_noise, pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base,
+        params, key, _root(params, latent), decision_fn, chance_fn, num_simulations,
+        dirichlet_fraction=dirichlet_fraction, pb_c_init=pb_c_init, pb_c_base=pb_c_base,
     )
     abstract_action = jnp.argmax(output.action_weights, axis=-1)
     return PlanResult(abstract_action.astype(jnp.int32), output.action_weights, output.search_tree.summary().value)

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
 from envs.base import Environment
-from pizero_ray.agent import networks, pizero
+from pizero_ray.agent import make_agent, networks
 from pizero_ray.agent.episodes import run_episodes
 from pizero_ray.agent.networks import Params
 from pizero_ray.config import Config
@@ -36,7 +36,7 @@ class FlatParams(NamedTuple):
 
 def flat_params(config: Config, env: Environment) -> tuple[jax.Array, FlatParams]:
     """Initial parameters (from config.seed) as a flat float32 vector, and its layout."""
-    params = pizero.init_params(jax.random.PRNGKey(config.seed), config, env.spec)
+    params = make_agent(config, env.spec).init(jax.random.PRNGKey(config.seed))
     theta, unravel = ravel_pytree(params)
     shapes = tuple(leaf.shape for leaf in jax.tree.leaves(params))
     perturbation = es_noise.Perturbation(shapes, config.perturbation_rank)
@@ -67,20 +67,21 @@ def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
     for the chunk; the episodes each pair plays still come from (iteration
     seed, pair index) alone.
     """
+    agent, sigma, episodes = make_agent(config, env.spec), config.sigma, config.trials
 
     def member_score(theta: jax.Array, episode_key: jax.Array) -> jax.Array:
-        return jnp.mean(run_episodes(layout.unravel(theta), config, env, episode_key, config.trials))
+        return jnp.mean(run_episodes(agent, layout.unravel(theta), env, episode_key, episodes))
 
     def low_rank_member_score(theta: jax.Array, noise: jax.Array, step: jax.Array, episode_key: jax.Array):
         params = perturbed_params(theta, noise, step, layout)
-        return jnp.mean(run_episodes(params, config, env, episode_key, config.trials))
+        return jnp.mean(run_episodes(agent, params, env, episode_key, episodes))
 
     def pair_scores(theta: jax.Array, key: jax.Array, pair_index: jax.Array, noise: jax.Array) -> jax.Array:
         episode_key = es_noise.pair_episode_key(key, pair_index)  # both halves see the same episodes
         if layout.perturbation.rank > 0:
-            steps = jnp.array([config.sigma, -config.sigma], jnp.float32)
+            steps = jnp.array([sigma, -sigma], jnp.float32)
             return jax.vmap(low_rank_member_score, in_axes=(None, None, 0, None))(theta, noise, steps, episode_key)
-        members = jnp.stack([theta + config.sigma * noise, theta - config.sigma * noise])
+        members = jnp.stack([theta + sigma * noise, theta - sigma * noise])
         return jax.vmap(member_score, in_axes=(0, None))(members, episode_key)
 
     def evaluate(theta: jax.Array, iteration_seed: jax.Array, pair_indices: jax.Array, noise: jax.Array):

@@ -117,7 +117,7 @@ def train(
 
     import envs
     from pizero_ray import es
-    from pizero_ray.agent import episodes
+    from pizero_ray.agent import episodes, make_agent
     from pizero_ray.trainer import ray_setup
 
     # Ray first: it forks its processes before JAX starts its threads.
@@ -132,7 +132,7 @@ def train(
 
     evaluator = None
     if options.eval_every > 0:
-        evaluator = episodes.make_evaluator(config, env, layout.unravel, options.eval_episodes)
+        evaluator = episodes.make_evaluator(make_agent(config, env.spec), env, layout.unravel, options.eval_episodes)
 
     pool = WorkerPool(config, options.pool_options())
     writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)

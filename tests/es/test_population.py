@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pizero_ray import es
-from pizero_ray.agent import episodes
+from pizero_ray.agent import episodes, make_agent
 from pizero_ray.config import build_config
 from pizero_ray.es import population
 
@@ -47,13 +47,6 @@ def test_both_halves_of_a_pair_play_the_same_episodes(tsp_env):
     assert scores[0, 0] != scores[1, 0]
 
 
-def test_run_episodes_scores_every_episode(tiny_config, tsp_env):
-    theta, layout = population.flat_params(tiny_config, tsp_env)
-    scores = episodes.make_evaluator(tiny_config, tsp_env, layout.unravel, 7)(theta, jax.random.PRNGKey(0))
-    assert scores.shape == (7,)
-    assert np.all(np.asarray(scores) < -1.0)
-
-
 def test_flat_parameters_round_trip(tiny_config, tsp_env):
     theta, layout = population.flat_params(tiny_config, tsp_env)
     assert theta.dtype == jnp.float32 and theta.shape == (layout.size,)
@@ -77,7 +70,7 @@ def test_low_rank_members_play_exactly_theta_plus_the_expanded_noise(tsp_env, en
     scores = pair_scorer(config, env)[1](9)
     key = es.iteration_key(np.uint32(9))
     member_score = jax.jit(lambda member, episode_key: jnp.mean(
-        episodes.run_episodes(layout.unravel(member), config, env, episode_key, config.trials)))
+        episodes.run_episodes(make_agent(config, env.spec), layout.unravel(member), env, episode_key, config.trials)))
     expected = []
     for i in range(3):
         z = es.expand_noise(es.pair_noise(key, i, layout.perturbation.noise_size), layout.perturbation)

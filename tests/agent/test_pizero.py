@@ -1,0 +1,75 @@
+import jax
+import numpy as np
+import pytest
+
+from pizero_ray.agent import make_agent
+from pizero_ray.config import build_config
+
+
+def _observations(env, batch, seed=0):
+    return jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(seed), batch))
+
+
+@pytest.fixture(scope="module")
+def tiny_agent(tiny_config, tsp_env):
+    return make_agent(tiny_config, tsp_env.spec)
+
+
+def test_act_shapes_and_legal_actions(tiny_config, tsp_env, tiny_agent):
+    params = tiny_agent.init(jax.random.PRNGKey(0))
+    _, obs = _observations(tsp_env, 5)
+    obs = obs._replace(action_mask=obs.action_mask.at[:, :9].set(False))  # only city 9 is legal
+    memory = tiny_agent.initial_memory(5)
+    action, new_memory, info = jax.jit(tiny_agent.act)(params, memory, obs, jax.random.PRNGKey(1))
+    assert action.shape == (5,) and list(np.asarray(action)) == [9] * 5
+    assert new_memory.shape == (5, tiny_config.memory_size)
+    assert not np.allclose(new_memory, memory)  # memory takes in observation and action
+    assert info.latent.shape == (5, tiny_config.latent_size)
+    assert info.plan.visit_probs.shape == (5, tiny_config.num_abstract_actions)
+
+
+def test_act_is_deterministic_given_a_key(tsp_env, tiny_agent):
+    params = tiny_agent.init(jax.random.PRNGKey(0))
+    _, obs = _observations(tsp_env, 4)
+    act = jax.jit(tiny_agent.act)
+    first = act(params, tiny_agent.initial_memory(4), obs, jax.random.PRNGKey(3))
+    second = act(params, tiny_agent.initial_memory(4), obs, jax.random.PRNGKey(3))
+    for a, b in zip(jax.tree_util.tree_leaves(first), jax.tree_util.tree_leaves(second)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_no_planner_has_no_abstract_model_and_acts(tsp_env):
+    agent = make_agent(build_config("tiny", planner="none"), tsp_env.spec)
+    params = agent.init(jax.random.PRNGKey(0))
+    assert set(params) == {"encoder", "memory", "decoder"}
+    _, obs = _observations(tsp_env, 3)
+    action, _, info = agent.act(params, agent.initial_memory(3), obs, jax.random.PRNGKey(0))
+    assert action.shape == (3,)
+    assert not np.asarray(info.plan.visit_probs).any()  # no search, an all-zero result
+
+
+def test_the_memory_reads_the_action_taken(tiny_config, tsp_env, tiny_agent):
+    # The same observation and memory, but different legal actions forced by the
+    # mask: the new memories differ, because the GRU reads the taken action's features.
+    params = tiny_agent.init(jax.random.PRNGKey(0))
+    _, obs = _observations(tsp_env, 1)
+    memory = tiny_agent.initial_memory(1)
+    memories = []
+    for city in (3, 7):
+        only = obs._replace(action_mask=np.arange(obs.action_mask.shape[1])[None] == city)
+        action, new_memory, _ = tiny_agent.act(params, memory, only, jax.random.PRNGKey(0))
+        assert int(action[0]) == city
+        memories.append(np.asarray(new_memory))
+    assert not np.allclose(memories[0], memories[1])
+
+
+def test_planner_choice_leaves_the_encoder_memory_and_decoder_initialisation_alone(tsp_env):
+    # A planner-vs-none comparison starts from the same encoder, memory and decoder.
+    with_planner = make_agent(build_config("tiny"), tsp_env.spec).init(jax.random.PRNGKey(5))
+    without = make_agent(build_config("tiny", planner="none"), tsp_env.spec).init(jax.random.PRNGKey(5))
+    for name in ("encoder", "memory"):
+        for a, b in zip(jax.tree_util.tree_leaves(with_planner[name]), jax.tree_util.tree_leaves(without[name])):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # The decoder's context is smaller without a planner, its per-action part is the same.
+    np.testing.assert_array_equal(np.asarray(with_planner["decoder"]["features"]["w"]),
+                                  np.asarray(without["decoder"]["features"]["w"]))
