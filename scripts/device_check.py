@@ -119,7 +119,6 @@ def python_environment(args) -> tuple[str, dict, dict]:
 NOISE_PROBE = """
 import json, jax, numpy as np
 from pizero_ray import es
-from pizero_ray.agent import episodes
 from pizero_ray.es import population
 from pizero_ray.config import build_config
 import envs

@@ -96,14 +96,14 @@ def test_gradient_parts_of_a_dead_worker_are_computed_by_the_driver(ray_session,
     from pizero_ray.trainer.pool import PoolOptions, WorkerPool
 
     theta, layout = population.flat_params(CONFIG, envs.make(CONFIG.env))
-    update = es.make_update(CONFIG, layout.perturbation)
-    seed = es.iteration_seed(CONFIG.seed, 0)
+    strategy = es.make_strategy(CONFIG, layout.perturbation)
+    seed = strategy.ask(strategy.init(theta))
     pool = WorkerPool(CONFIG, PoolOptions(max_workers=1, compile_cache=compile_cache_dir))
     try:
         theta_ref = ray_session.put(np.asarray(theta))
         result = pool.evaluate(theta_ref, seed)
-        weights = np.asarray(update.weights(result.scores, result.valid)[0])
-        compute_here = functools.partial(update.part_here, seed, weights)
+        weights = strategy.weights(result.scores, result.valid)
+        compute_here = functools.partial(strategy.parts.chunk_here, seed, weights)
         from_worker, computed_here = pool.gradient_parts(seed, weights, result.owners, compute_here)
         assert computed_here == 0  # the worker kept every chunk's noise
 

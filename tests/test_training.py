@@ -97,15 +97,19 @@ def test_gradient_parts_from_workers_equal_the_update_in_one_process(ray_session
     env = envs.make(config.env, **config.env_kwargs())
     theta, layout = population.flat_params(config, env)
     evaluate = population.make_pair_evaluator(config, env, layout)
-    update = es.make_update(config, layout.perturbation)
-    state = update.optimizer.init(theta)
-    for iteration in range(2):
-        seed = es.iteration_seed(config.seed, iteration)
+    strategy = es.make_strategy(config, layout.perturbation)
+    state = strategy.init(theta)
+    valid = np.ones(config.population, bool)
+    for _ in range(2):
+        seed = strategy.ask(state)
         scores = np.concatenate([
-            np.asarray(evaluate(theta, np.uint32(seed), jnp.arange(first, first + config.chunk_size),
-                                update.parts.noise(np.uint32(seed), np.int32(first))))
+            np.asarray(evaluate(state.theta, np.uint32(seed), jnp.arange(first, first + config.chunk_size),
+                                strategy.parts.noise(np.uint32(seed), np.int32(first))))
             for first in range(0, config.population, config.chunk_size)])
-        theta, state, _ = update(theta, state, seed, jnp.asarray(scores), jnp.ones(config.population, bool))
-    assert runs.parameter_hash(np.asarray(theta)) == trained["parameter_hash"]
+        weights = strategy.weights(scores, valid)
+        parts = [strategy.parts.chunk_here(seed, weights, index) for index in range(config.num_chunks)]
+        state, _ = strategy.tell(state, scores, valid, parts)
+    assert state.iteration == 2
+    assert runs.parameter_hash(np.asarray(state.theta)) == trained["parameter_hash"]
     rows = run_dir.read_metrics(tmp_path / "run")
     assert [row["gradient_parts_on_driver"] for row in rows[1:]] == [0, 0]  # every part came from a worker

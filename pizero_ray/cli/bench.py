@@ -175,15 +175,21 @@ def driver_update(config: Config, repeats: int) -> float:
 
     env = envs.make(config.env)
     theta, layout = population.flat_params(config, env)
-    update = es.make_update(config, layout.perturbation)
-    state = update.optimizer.init(theta)
-    scores = jnp.asarray(np.random.default_rng(0).normal(size=(config.population, 2)), jnp.float32)
-    valid = jnp.ones((config.population,), bool)
-    jax.block_until_ready(update(theta, state, np.uint32(0), scores, valid))
+    strategy = es.make_strategy(config, layout.perturbation)
+    state = strategy.init(theta)
+    scores = np.random.default_rng(0).normal(size=(config.population, 2)).astype(np.float32)
+    valid = np.ones((config.population,), bool)
+
+    def update(seed: int):
+        weights = strategy.weights(scores, valid)
+        parts = [strategy.parts.chunk_here(seed, weights, index) for index in range(config.num_chunks)]
+        return strategy.tell(state, scores, valid, parts)[0]
+
+    jax.block_until_ready(update(0))
     times = []
     for seed in range(repeats):
         t0 = time.perf_counter()
-        jax.block_until_ready(update(theta, state, np.uint32(seed), scores, valid))
+        jax.block_until_ready(update(seed))
         times.append(time.perf_counter() - t0)
     return statistics.median(times)
 

@@ -18,17 +18,17 @@ from pizero_ray.es.noise import (
 )
 from pizero_ray.es.shaping import centered_ranks, pair_weights
 from pizero_ray.es.strategy import (
+    ESState,
     GradientParts,
-    Update,
+    Strategy,
     UpdateStats,
     gradient_parts,
     make_optimizer,
-    make_update,
-    pseudo_gradient,
+    make_strategy,
 )
 
 __all__ = [
-    "GradientParts", "Perturbation", "Update", "UpdateStats", "centered_ranks", "chunk_noise", "expand_noise",
-    "gradient_parts", "iteration_key", "iteration_seed", "make_optimizer", "make_update", "pair_episode_key",
-    "pair_noise", "pair_weights", "pseudo_gradient", "split_noise", "weighted_noise_sum",
+    "ESState", "GradientParts", "Perturbation", "Strategy", "UpdateStats", "centered_ranks", "chunk_noise",
+    "expand_noise", "gradient_parts", "iteration_key", "iteration_seed", "make_optimizer", "make_strategy",
+    "pair_episode_key", "pair_noise", "pair_weights", "split_noise", "weighted_noise_sum",
 ]

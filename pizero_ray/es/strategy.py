@@ -1,16 +1,18 @@
-"""OpenAI-ES's update: the pseudo-gradient from per-chunk parts, and an optax optimiser.
+"""OpenAI-ES as a strategy over an explicit state: ``init``, ``ask``, ``tell`` (``make_strategy``).
 
 The pseudo-gradient
     g = sum_i w_i z_i / (2 sigma n),   w_i = shaped(score_i+) - shaped(score_i-)
 is a sum of per-chunk parts (``GradientParts``), added in chunk order: the
 worker that evaluated a chunk computes its part from the noise it kept, the
 driver regenerates the noise of any other (one chunk in memory at a time).
-Then Adam takes an ascent step.
+Then Adam takes an ascent step. The state (``ESState``: flat parameters,
+optax state, iteration) is explicit; the strategy's functions are bound to the
+config once.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -18,36 +20,8 @@ import numpy as np
 import optax
 
 from pizero_ray.config import Config
-from pizero_ray.es.noise import Perturbation, chunk_noise, iteration_key, weighted_noise_sum
+from pizero_ray.es.noise import Perturbation, chunk_noise, iteration_key, iteration_seed, weighted_noise_sum
 from pizero_ray.es.shaping import pair_weights
-
-
-def pseudo_gradient(
-    key: jax.Array,
-    weights: jax.Array,
-    sigma: float,
-    perturbation: Perturbation,
-    chunk_size: int,
-    num_pairs: jax.Array | None = None,
-) -> jax.Array:
-    """sum_i w_i z_i / (2 sigma n) in one function, regenerating the noise one chunk at a time.
-
-    The reference the trainer's chunk-by-chunk ``GradientParts`` are tested
-    against. ``num_pairs`` is n when some weights are zero because their pairs
-    were dropped.
-    """
-    size, noise_size = perturbation.parameter_size, perturbation.noise_size
-    total_pairs = weights.shape[0]
-    chunks = weights.reshape(total_pairs // chunk_size, chunk_size)
-    starts = jnp.arange(0, total_pairs, chunk_size)
-
-    def add_chunk(total, chunk):
-        start, chunk_weights = chunk
-        noise = chunk_noise(key, start, chunk_size, noise_size)
-        return total + weighted_noise_sum(chunk_weights, noise, perturbation), None
-
-    total, _ = jax.lax.scan(add_chunk, jnp.zeros((size,), jnp.float32), (starts, chunks))
-    return total / (2.0 * sigma * (total_pairs if num_pairs is None else num_pairs))
 
 
 class GradientParts(NamedTuple):
@@ -62,6 +36,7 @@ class GradientParts(NamedTuple):
     noise: object  # jit(iteration_seed, first_pair) -> noise [C, noise_size]
     part: object  # jit(weights [C], noise [C, noise_size]) -> [D]
     chunk_size: int
+    parameter_size: int
 
     def from_noise(self, weights: np.ndarray, noise) -> np.ndarray:
         """The part of a chunk whose noise is at hand (kept from its evaluation, or regenerated)."""
@@ -69,6 +44,13 @@ class GradientParts(NamedTuple):
 
     def regenerated(self, seed, first_pair: int, weights: np.ndarray) -> np.ndarray:
         return self.from_noise(weights, self.noise(np.uint32(seed), np.int32(first_pair)))
+
+    def chunk_here(self, seed, weights: np.ndarray, chunk_index: int) -> np.ndarray:
+        """Chunk ``chunk_index``'s part from regenerated noise; zeros for a chunk whose weights are all zero."""
+        chunk_weights = weights[chunk_index * self.chunk_size:(chunk_index + 1) * self.chunk_size]
+        if not chunk_weights.any():
+            return np.zeros(self.parameter_size, np.float32)
+        return self.regenerated(seed, chunk_index * self.chunk_size, chunk_weights)
 
     @staticmethod
     def total(parts) -> np.ndarray:
@@ -88,7 +70,7 @@ def gradient_parts(config: Config, perturbation: Perturbation) -> GradientParts:
     def part(weights, noise):
         return weighted_noise_sum(weights, noise, perturbation)
 
-    return GradientParts(jax.jit(noise), jax.jit(part), chunk)
+    return GradientParts(jax.jit(noise), jax.jit(part), chunk, perturbation.parameter_size)
 
 
 def make_optimizer(config: Config) -> optax.GradientTransformation:
@@ -97,54 +79,76 @@ def make_optimizer(config: Config) -> optax.GradientTransformation:
     return optax.chain(optax.add_decayed_weights(config.weight_decay), optax.adam(config.learning_rate))
 
 
+class ESState(NamedTuple):
+    """Everything OpenAI-ES carries from one iteration to the next."""
+
+    theta: jax.Array  # flat parameters [D]
+    opt_state: optax.OptState
+    iteration: int  # iterations done; the next one's seed is a function of it
+
+
 class UpdateStats(NamedTuple):
-    gradient_norm: jax.Array
-    update_norm: jax.Array
-    parameter_norm: jax.Array
+    """What one ``tell`` saw and did: the scores that came in, and the step's sizes."""
+
+    mean_score: float
+    std_score: float
+    max_score: float
+    min_score: float
+    pairs: int  # pairs whose scores came in
+    gradient_norm: float
+    update_norm: float
+    parameter_norm: float
 
 
-class Update(NamedTuple):
-    """The driver's update in its three steps (so that the middle one can run on the workers)."""
+class Strategy(NamedTuple):
+    """OpenAI-ES bound to a config, as evosax's strategies: ``init``, ``ask``, ``tell`` over an explicit state.
 
-    optimizer: optax.GradientTransformation
-    weights: object  # jit(scores [n, 2], valid [n]) -> (w [n], number of valid pairs)
-    parts: GradientParts
-    step: object  # jit(theta, opt_state, sum of the parts, number of valid pairs) -> (theta, opt_state, stats)
-    parameter_size: int
-
-    def part_here(self, seed, weights: np.ndarray, chunk_index: int) -> np.ndarray:
-        """One chunk's part from regenerated noise (zeros for a chunk whose weights are all zero)."""
-        chunk = self.parts.chunk_size
-        chunk_weights = weights[chunk_index * chunk:(chunk_index + 1) * chunk]
-        if not chunk_weights.any():
-            return np.zeros(self.parameter_size, np.float32)
-        return self.parts.regenerated(seed, chunk_index * chunk, chunk_weights)
-
-    def __call__(self, theta, opt_state, seed, scores, valid):
-        """The whole update in this process: every chunk's part from regenerated noise, one chunk at a time."""
-        weights, num_pairs = self.weights(scores, valid)
-        weights = np.asarray(weights)
-        parts = (self.part_here(seed, weights, index) for index in range(weights.shape[0] // self.parts.chunk_size))
-        return self.step(theta, opt_state, GradientParts.total(parts), num_pairs)
-
-
-def make_update(config: Config, perturbation: Perturbation) -> Update:
-    """The update: (theta, opt_state, iteration_seed, scores [n, 2], valid [n]) -> (theta, opt_state, stats).
-
-    ``valid`` marks the pairs whose scores came in (all of them unless a run
-    lets iterations finish early with ``min_fraction``).
+    Between ``ask`` and ``tell`` the caller scores the population and gathers
+    the chunks' gradient parts (``parts``), wherever they are computed; it
+    needs the pair weights for that (``weights``).
     """
-    optimizer = make_optimizer(config)
 
-    def weights(scores, valid):
+    init: Callable[[jax.Array], ESState]  # initial flat parameters -> state
+    ask: Callable[[ESState], int]  # -> the iteration seed the population is drawn from
+    weights: Callable[[np.ndarray, np.ndarray], np.ndarray]  # (scores [n, 2], valid [n]) -> pair weights [n]
+    tell: Callable[[ESState, np.ndarray, np.ndarray, list], tuple[ESState, UpdateStats]]
+    parts: GradientParts
+
+
+def make_strategy(config: Config, perturbation: Perturbation) -> Strategy:
+    """OpenAI-ES with ``config``'s shaping, sigma and optimiser over parameters laid out as ``perturbation``."""
+    optimizer = make_optimizer(config)
+    parts = gradient_parts(config, perturbation)
+
+    def init(theta) -> ESState:
+        theta = jnp.asarray(theta, jnp.float32)
+        return ESState(theta, optimizer.init(theta), 0)
+
+    def ask(state: ESState) -> int:
+        return iteration_seed(config.seed, state.iteration)
+
+    @jax.jit
+    def shaped(scores, valid):
         return pair_weights(scores, config.fitness_shaping, valid), jnp.maximum(jnp.sum(valid), 1)
 
+    @jax.jit
     def step(theta, opt_state, parts_total, num_pairs):
         g = parts_total / (2.0 * config.sigma * num_pairs.astype(jnp.float32))
         updates, opt_state = optimizer.update(-g, opt_state, theta)
         new_theta = optax.apply_updates(theta, updates)
-        stats = UpdateStats(jnp.linalg.norm(g), jnp.linalg.norm(updates), jnp.linalg.norm(new_theta))
-        return new_theta, opt_state, stats
+        return new_theta, opt_state, (jnp.linalg.norm(g), jnp.linalg.norm(updates), jnp.linalg.norm(new_theta))
 
-    return Update(optimizer, jax.jit(weights), gradient_parts(config, perturbation), jax.jit(step),
-                  perturbation.parameter_size)
+    def weights(scores, valid) -> np.ndarray:
+        return np.asarray(shaped(jnp.asarray(scores), jnp.asarray(valid))[0])
+
+    def tell(state: ESState, scores, valid, chunk_parts) -> tuple[ESState, UpdateStats]:
+        """The Adam step on sum(parts) / (2 sigma n), n the pairs that came in; ``chunk_parts`` in chunk order."""
+        valid = np.asarray(valid, bool)
+        num_pairs = jnp.maximum(jnp.sum(jnp.asarray(valid)), 1)
+        theta, opt_state, norms = step(state.theta, state.opt_state, GradientParts.total(chunk_parts), num_pairs)
+        came_in = np.asarray(scores)[valid]
+        stats = UpdateStats(float(came_in.mean()), float(came_in.std()), float(came_in.max()), float(came_in.min()),
+                            int(valid.sum()), *(float(norm) for norm in norms))
+        return ESState(theta, opt_state, state.iteration + 1), stats
+
+    return Strategy(init, ask, weights, tell, parts)

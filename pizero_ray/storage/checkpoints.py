@@ -2,7 +2,7 @@
 
 Layout: RUN_DIR/checkpoints/<iteration>/{state, meta}. ``state`` holds the flat
 parameters and the complete optax state (Adam moments and count) as arrays;
-``meta`` is JSON (iteration, seed, config, metrics position, and a hash of the
+``meta`` is JSON (iteration, seed, config, parameter hash, and a hash of the
 whole state). Orbax writes a step into a temporary directory and renames it
 when complete, so a save that dies half-way is never listed as a step; the
 hash catches a finished checkpoint damaged later. After Orbax's save, a file

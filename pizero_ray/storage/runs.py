@@ -6,6 +6,7 @@ What eval, render and inspect need, without the Ray trainer.
 from __future__ import annotations
 
 import hashlib
+import json
 from pathlib import Path
 from typing import NamedTuple
 
@@ -21,15 +22,35 @@ def parameter_hash(theta: np.ndarray) -> str:
 
 
 def initial_state(config: Config, env):
-    """Initial flat parameters (from config.seed), optimiser state, layout and update of a run."""
-    import jax.numpy as jnp
-
+    """A run's ES strategy, its initial state (parameters from config.seed) and the parameters' layout."""
     from pizero_ray import es
     from pizero_ray.es import population
 
     theta, layout = population.flat_params(config, env)
-    update = es.make_update(config, layout.perturbation)
-    return np.asarray(theta), update.optimizer.init(jnp.asarray(theta)), layout, update
+    strategy = es.make_strategy(config, layout.perturbation)
+    return strategy.init(theta), layout, strategy
+
+
+def restore(run_path: Path, state, **resume_options):
+    """``state`` with the run's newest good checkpoint restored into it (see ``checkpoints.prepare_resume``).
+
+    Returns (state, the metrics rows kept). Refuses a run dir whose progress
+    it cannot continue; never deletes a metrics row.
+    """
+    import jax.numpy as jnp
+
+    resumed = checkpoints.prepare_resume(run_path, np.asarray(state.theta), state.opt_state, **resume_options)
+    restored = state._replace(theta=jnp.asarray(resumed.theta), opt_state=resumed.opt_state,
+                              iteration=resumed.iteration)
+    return restored, resumed.metrics
+
+
+def save(writer, config: Config, state) -> None:
+    """Saves ``state`` as the checkpoint of its iteration."""
+    theta = np.asarray(state.theta)
+    meta = {"iteration": state.iteration, "seed": config.seed, "config": json.loads(config.to_json()),
+            "parameter_hash": parameter_hash(theta)}
+    writer.save(state.iteration, theta, state.opt_state, meta)
 
 
 class LoadedRun(NamedTuple):
@@ -50,7 +71,8 @@ def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
 
     config = rundir.read_config(run_path)
     trained_env = envs.make(config.env, **config.env_kwargs())
-    theta, opt_state, layout, _ = initial_state(config, trained_env)
+    state, layout, _ = initial_state(config, trained_env)
+    theta, opt_state = np.asarray(state.theta), state.opt_state
     env = trained_env
     if env_args:
         try:

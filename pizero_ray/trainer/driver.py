@@ -1,20 +1,20 @@
 """The Ray driver: owns the parameters and the optimiser state, farms out chunks.
 
-Each iteration: derive the iteration seed from (run seed, iteration), put the
-parameters in the object store once, let the worker pool evaluate the queue of
-chunks of pair indices, turn the scores into per-pair weights, collect each
-chunk's share of the pseudo-gradient from the worker that still holds the
-chunk's noise (or regenerate it here), add the shares in chunk order and take
-an Adam step. Only a seed, an object reference and a chunk index go out for a
-chunk, scores come back; then a chunk's weights go out and its share (one
-vector) comes back. Checkpoints every K iterations and on exit, SIGTERM or
+Each iteration (``_Run.iterate``): ask the ES strategy for the iteration
+seed (a function of the run seed and the iteration), put the parameters in
+the object store once, let the worker pool evaluate the queue of chunks of
+pair indices, turn the scores into per-pair weights, collect each chunk's
+share of the pseudo-gradient from the worker that still holds the chunk's
+noise (or regenerate it here), and tell the strategy the shares: it adds
+them in chunk order and takes an Adam step. Only a seed, an object reference
+and a chunk index go out for a chunk, scores come back; then a chunk's
+weights go out and its share (one vector) comes back. Checkpoints every K iterations and on exit, SIGTERM or
 SIGINT.
 """
 
 from __future__ import annotations
 
 import functools
-import json
 import signal
 import threading
 import time
@@ -99,6 +99,90 @@ class _StopRequest:
             signal.signal(sig, handler)
 
 
+class _Run:
+    """One training session: the ES state and strategy, the pool, and where the run is written."""
+
+    def __init__(self, run_path: Path, config: Config, options: RunOptions):
+        import envs
+        from pizero_ray.agent import episodes, make_agent
+
+        self.config, self.options = config, options
+        env = envs.make(config.env, **config.env_kwargs())
+        state, self.layout, self.strategy = runs.initial_state(config, env)
+        self.state, self.metrics = runs.restore(run_path, state, restart=options.restart)
+        self.start_iteration = self.state.iteration
+        self.evaluator = None
+        if options.eval_every > 0:
+            self.evaluator = episodes.make_evaluator(make_agent(config, env.spec), env, self.layout.unravel,
+                                                     options.eval_episodes)
+        self.pool = WorkerPool(config, options.pool_options())
+        self.writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)
+        self.log = rundir.MetricsLog(run_path)
+        self.wall_offset = self.metrics[-1]["wall_time_s"] if self.metrics else 0.0
+        self.started = time.time()
+
+    def save(self) -> None:
+        runs.save(self.writer, self.config, self.state)
+
+    def evaluate(self) -> float:
+        import jax
+
+        return float(self.evaluator(self.state.theta, jax.random.PRNGKey(EVAL_SEED)).mean())
+
+    def begin(self) -> None:
+        if self.state.iteration == 0:
+            self.save()  # a run killed before its first periodic checkpoint still resumes (prepare_resume)
+        if self.evaluator is not None and not self.metrics:
+            # Row 0: the untrained agent, so every learning curve has its starting point.
+            self.log.write({"iteration": 0, "eval_mean_score": self.evaluate(), "wall_time_s": 0.0})
+
+    def iterate(self, stop: Callable[[], bool]) -> dict:
+        """ask, score the population on the workers, gather the gradient parts, tell; raises Interrupted on a stop."""
+        import ray
+
+        started = time.time()
+        seed = self.strategy.ask(self.state)
+        theta_ref = ray.put(np.asarray(self.state.theta))  # once per iteration; each node fetches it once
+        result = self.pool.evaluate(theta_ref, seed, self.state.iteration, should_stop=stop)
+        scored = time.time()
+        weights = self.strategy.weights(result.scores, result.valid)
+        parts, parts_here = self.pool.gradient_parts(
+            seed, weights, result.owners, functools.partial(self.strategy.parts.chunk_here, seed, weights),
+            should_stop=stop)
+        state, stats = self.strategy.tell(self.state, result.scores, result.valid, parts)
+        state.theta.block_until_ready()
+        self.state = state  # only a finished iteration moves the state: an interrupted one is dropped
+        now = time.time()
+        row = {"iteration": state.iteration, **_score_stats(stats), "requeued_chunks": result.requeued_chunks,
+               "gradient_parts_on_driver": parts_here, "iteration_time_s": now - started,
+               "update_time_s": now - scored, "wall_time_s": self.wall_offset + now - self.started,
+               "gradient_norm": stats.gradient_norm, "update_norm": stats.update_norm,
+               "parameter_norm": stats.parameter_norm, "workers": self.pool.live_workers,
+               "worker_nodes": [node[:12] for node in result.worker_nodes]}
+        if result.new_worker_first_result_s:
+            row["new_worker_first_result_s"] = [round(s, 3) for s in result.new_worker_first_result_s]
+        return row
+
+    def record(self, row: dict) -> None:
+        """Evaluates if due, writes the row, checkpoints if due."""
+        iteration, options = row["iteration"], self.options
+        if self.evaluator is not None and (iteration % options.eval_every == 0 or iteration == options.iterations):
+            row["eval_mean_score"] = self.evaluate()
+        self.log.write(row)
+        if options.checkpoint_every > 0 and iteration % options.checkpoint_every == 0:
+            self.save()
+
+    def close(self) -> None:
+        self.log.close()
+        self.writer.close()
+        self.pool.shutdown()
+
+
+def _score_stats(stats) -> dict:
+    return {"mean_score": stats.mean_score, "std_score": stats.std_score, "max_score": stats.max_score,
+            "min_score": stats.min_score, "pairs_evaluated": stats.pairs}
+
+
 def train(
     run_path: Path,
     config: Config,
@@ -108,112 +192,33 @@ def train(
 ) -> dict:
     """Trains until ``options.iterations`` iterations are done, resuming from the newest good checkpoint.
 
-    Returns {"iteration", "parameter_hash", "stopped_by"}: ``stopped_by`` names
-    the signal that interrupted training (after a checkpoint was saved), or None.
+    Returns {"iteration", "parameter_hash", "stopped_by", "workers_killed"}:
+    ``stopped_by`` names the signal that interrupted training (after a
+    checkpoint was saved), or None.
     """
-    import jax
-    import jax.numpy as jnp
-    import ray
-
-    import envs
-    from pizero_ray import es
-    from pizero_ray.agent import episodes, make_agent
     from pizero_ray.trainer import ray_setup
 
-    # Ray first: it forks its processes before JAX starts its threads.
-    connection = ray_setup.init(options.address)
+    connection = ray_setup.init(options.address)  # Ray first: it forks its processes before JAX starts its threads
     compile_cache.enable(options.compile_cache)
-    env = envs.make(config.env, **config.env_kwargs())
-    theta, opt_state, layout, update = runs.initial_state(config, env)
-    # Refuses a run dir whose progress it cannot continue (unless options.restart); never deletes a metrics row.
-    start_iteration, theta, opt_state, metrics = checkpoints.prepare_resume(run_path, theta, opt_state,
-                                                                           restart=options.restart)
-    wall_offset = metrics[-1]["wall_time_s"] if metrics else 0.0
-
-    evaluator = None
-    if options.eval_every > 0:
-        evaluator = episodes.make_evaluator(make_agent(config, env.spec), env, layout.unravel, options.eval_episodes)
-
-    pool = WorkerPool(config, options.pool_options())
-    writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)
-    log = rundir.MetricsLog(run_path)
-    theta_device = jnp.asarray(theta)
-    iteration = start_iteration
-
-    def save() -> None:
-        host_theta = np.asarray(theta_device)
-        meta = {"iteration": iteration, "seed": config.seed, "config": json.loads(config.to_json()),
-                "metrics_rows": iteration, "parameter_hash": runs.parameter_hash(host_theta)}
-        writer.save(iteration, host_theta, opt_state, meta)
-
+    run = _Run(run_path, config, options)
     if on_start:
-        on_start({"connection": connection, "start_iteration": start_iteration, "parameters": layout.size,
+        on_start({"connection": connection, "start_iteration": run.start_iteration, "parameters": run.layout.size,
                   "workers": options.workers})
-    started = time.time()
     stop = _StopRequest()
     try:
         with stop:
-            if iteration == 0:
-                save()  # a run killed before its first periodic checkpoint still resumes (prepare_resume)
-            if evaluator is not None and not metrics:
-                # Row 0: the untrained agent, so every learning curve has its starting point.
-                eval_scores = evaluator(theta_device, jax.random.PRNGKey(EVAL_SEED))
-                log.write({"iteration": 0, "eval_mean_score": float(eval_scores.mean()), "wall_time_s": 0.0})
-            while iteration < options.iterations and not stop():
-                t0 = time.time()
-                seed = es.iteration_seed(config.seed, iteration)
-                theta_ref = ray.put(np.asarray(theta_device))  # once per iteration; each node fetches it once
+            run.begin()
+            while run.state.iteration < options.iterations and not stop():
                 try:
-                    result = pool.evaluate(theta_ref, seed, iteration, should_stop=stop)
+                    row = run.iterate(stop)
                 except Interrupted:
                     break  # the unfinished iteration is dropped; the last finished one is saved below
-                t1 = time.time()
-                weights, num_pairs = update.weights(jnp.asarray(result.scores), jnp.asarray(result.valid))
-                weights = np.asarray(weights)
-                try:
-                    parts, parts_here = pool.gradient_parts(
-                        seed, weights, result.owners, functools.partial(update.part_here, seed, weights),
-                        should_stop=stop)
-                except Interrupted:
-                    break  # as above: theta is still the last finished iteration's, saved below
-                theta_device, opt_state, stats = update.step(
-                    theta_device, opt_state, es.GradientParts.total(parts), num_pairs)
-                theta_device.block_until_ready()
-                iteration += 1
-                now = time.time()
-                scores = result.scores[result.valid]
-                row = {
-                    "iteration": iteration,
-                    "mean_score": float(scores.mean()),
-                    "std_score": float(scores.std()),
-                    "max_score": float(scores.max()),
-                    "min_score": float(scores.min()),
-                    "pairs_evaluated": int(result.valid.sum()),
-                    "requeued_chunks": result.requeued_chunks,
-                    "gradient_parts_on_driver": parts_here,
-                    "iteration_time_s": now - t0,
-                    "update_time_s": now - t1,
-                    "wall_time_s": wall_offset + now - started,
-                    "gradient_norm": float(stats.gradient_norm),
-                    "parameter_norm": float(stats.parameter_norm),
-                    "workers": pool.live_workers,
-                    "worker_nodes": [node[:12] for node in result.worker_nodes],
-                }
-                if result.new_worker_first_result_s:
-                    row["new_worker_first_result_s"] = [round(s, 3) for s in result.new_worker_first_result_s]
-                if evaluator is not None and (iteration % options.eval_every == 0 or iteration == options.iterations):
-                    eval_scores = evaluator(theta_device, jax.random.PRNGKey(EVAL_SEED))
-                    row["eval_mean_score"] = float(eval_scores.mean())
-                log.write(row)
-                if options.checkpoint_every > 0 and iteration % options.checkpoint_every == 0:
-                    save()
+                run.record(row)
                 if on_iteration:
                     on_iteration(row)
-            save()  # on normal exit and on SIGTERM/SIGINT alike
+            run.save()  # on normal exit and on SIGTERM/SIGINT alike
     finally:
-        log.close()
-        writer.close()
-        pool.shutdown()
+        run.close()
     stopped_by = signal.Signals(stop.signal).name if stop.signal is not None else None
-    return {"iteration": iteration, "parameter_hash": runs.parameter_hash(np.asarray(theta_device)),
-            "stopped_by": stopped_by, "workers_killed": pool.kills}
+    return {"iteration": run.state.iteration, "parameter_hash": runs.parameter_hash(np.asarray(run.state.theta)),
+            "stopped_by": stopped_by, "workers_killed": run.pool.kills}

@@ -163,49 +163,17 @@ class WorkerPool:
     def evaluate(
         self, theta_ref, seed: int, iteration: int = 0, should_stop: Callable[[], bool] = lambda: False
     ) -> IterationResult:
+        """Scores of every chunk of the population (or ``min_fraction`` of them) at ``theta_ref``."""
         import ray
-        from ray.exceptions import GetTimeoutError, RayError, RayTaskError
 
-        chunk = self._config.chunk_size
-        num_chunks = self._config.num_chunks
-        needed = num_chunks if self._options.min_fraction >= 1 else max(
-            1, math.ceil(self._options.min_fraction * num_chunks))
-        pending = deque(range(num_chunks))
-        results: dict[int, np.ndarray] = {}
-        in_flight: dict = {}  # ref -> (chunk index, worker, deadline)
-        failures: dict[int, int] = {}
-        requeued = 0
-        first_results: list[float] = []
-        nodes: set[str] = set()
-        owners: dict[int, _Worker] = {}
-
-        def fail_chunk(index: int, worker: _Worker, kill: bool) -> None:
-            nonlocal requeued
-            failures[index] = failures.get(index, 0) + 1
-            if failures[index] >= MAX_CHUNK_FAILURES:
-                raise TrainingError(f"chunk {index} failed on {failures[index]} workers; giving up")
-            pending.appendleft(index)
-            requeued += 1
-            self._drop(worker, kill=kill)
-
-        while len(results) < needed:
+        queue = _ChunkQueue(self, theta_ref, seed, iteration)
+        while not queue.enough():
             if should_stop():
                 raise Interrupted()
             self.top_up()
-            for worker in self._workers:
-                devices = worker.info.get("devices", 1)  # chunks the worker runs at once
-                while worker.ready and pending and worker.in_flight < self._options.in_flight_per_worker * devices:
-                    index = pending.popleft()
-                    ref = worker.actor.evaluate_chunk.remote(theta_ref, seed, index * chunk)
-                    # The deadline allows for the chunks queued ahead of this one on the worker.
-                    deadline = time.time() + self._options.chunk_timeout_s * (worker.in_flight // devices + 1)
-                    in_flight[ref] = (index, worker, deadline)
-                    worker.in_flight += 1
-                    if (iteration, index) in self._options.kill_schedule - self._kills_done:
-                        self._kills_done.add((iteration, index))
-                        self.kill_process(worker)
+            queue.dispatch()
             starting = {w.ready_ref: w for w in self._workers if not w.ready}
-            waitable = list(in_flight) + list(starting) + list(self._stale)
+            waitable = list(queue.in_flight) + list(starting) + list(self._stale)
             ready_refs, _ = ray.wait(waitable, num_returns=1, timeout=POLL_S) if waitable else ([], [])
             for ref in ready_refs:
                 if ref in starting:
@@ -213,47 +181,25 @@ class WorkerPool:
                 elif ref in self._stale:
                     self._stale.pop(ref)[0].in_flight -= 1
                 else:
-                    index, worker, _ = in_flight.pop(ref)
-                    worker.in_flight -= 1
-                    try:
-                        results[index] = ray.get(ref, timeout=self._options.chunk_timeout_s)
-                    except RayTaskError as error:
-                        raise TrainingError(f"a worker failed evaluating chunk {index}: {error}") from None
-                    except (RayError, GetTimeoutError):
-                        # The worker died (or its node did): the chunk runs elsewhere.
-                        fail_chunk(index, worker, kill=False)
-                        continue
-                    owners[index] = worker
-                    nodes.add(worker.info.get("node_id", "?"))
-                    if worker.first_result_s is None:
-                        worker.first_result_s = time.time() - worker.created
-                        first_results.append(worker.first_result_s)
+                    queue.collect(ref)
             now = time.time()
             self._expire_stale(now)
-            for ref, (index, worker, deadline) in list(in_flight.items()):
-                if now > deadline:  # a hung worker: kill it, run the chunk elsewhere
-                    del in_flight[ref]
-                    fail_chunk(index, worker, kill=True)
-            for ref, (index, worker, _) in list(in_flight.items()):
-                if worker not in self._workers:  # dropped above: its other chunks go back too
-                    del in_flight[ref]
-                    pending.appendleft(index)
-                    requeued += 1
-            if self.live_workers == 0 and now - self._last_ready_time > self._options.worker_start_timeout_s:
-                raise TrainingError(
-                    f"no worker has been ready for {self._options.worker_start_timeout_s:.0f} s "
-                    f"(asking for {self._options.cpus_per_worker} CPU / {self._options.gpus_per_worker} GPU each; "
-                    f"cluster has {ray.available_resources()} available)"
-                )
+            queue.expire(now)
+            self._check_workers_start(now)
         # min_fraction: stragglers finish in the background and are ignored, by their deadlines.
-        for ref, (_, worker, deadline) in in_flight.items():
+        for ref, (_, worker, deadline) in queue.in_flight.items():
             self._stale[ref] = (worker, deadline)
-        scores = np.zeros((self._config.population, 2), np.float32)
-        valid = np.zeros((self._config.population,), bool)
-        for index, chunk_scores in results.items():
-            scores[index * chunk:(index + 1) * chunk] = chunk_scores
-            valid[index * chunk:(index + 1) * chunk] = True
-        return IterationResult(scores, valid, requeued, first_results, sorted(nodes), owners)
+        return queue.result()
+
+    def _check_workers_start(self, now: float) -> None:
+        if self.live_workers == 0 and now - self._last_ready_time > self._options.worker_start_timeout_s:
+            import ray
+
+            raise TrainingError(
+                f"no worker has been ready for {self._options.worker_start_timeout_s:.0f} s "
+                f"(asking for {self._options.cpus_per_worker} CPU / {self._options.gpus_per_worker} GPU each; "
+                f"cluster has {ray.available_resources()} available)"
+            )
 
     def gradient_parts(
         self, seed: int, weights: np.ndarray, owners: dict, compute_here: Callable[[int], np.ndarray],
@@ -313,3 +259,90 @@ class WorkerPool:
                 except (RayError, GetTimeoutError):
                     pass  # the worker died: the part is computed here
         return parts
+
+
+class _ChunkQueue:
+    """One iteration's chunks: the queue, what is in flight where and until when, and what came back."""
+
+    def __init__(self, pool: WorkerPool, theta_ref, seed: int, iteration: int):
+        self.pool, self.theta_ref, self.seed, self.iteration = pool, theta_ref, seed, iteration
+        config, options = pool._config, pool._options
+        self.chunk, self.num_chunks = config.chunk_size, config.num_chunks
+        self.needed = self.num_chunks if options.min_fraction >= 1 else max(
+            1, math.ceil(options.min_fraction * self.num_chunks))
+        self.pending = deque(range(self.num_chunks))
+        self.in_flight: dict = {}  # ref -> (chunk index, worker, deadline)
+        self.results: dict[int, np.ndarray] = {}
+        self.owners: dict[int, _Worker] = {}  # chunk index -> the worker that evaluated it (it kept the noise)
+        self.failures: dict[int, int] = {}
+        self.requeued = 0
+        self.first_results: list[float] = []
+        self.nodes: set[str] = set()
+
+    def enough(self) -> bool:
+        return len(self.results) >= self.needed
+
+    def dispatch(self) -> None:
+        """Hands pending chunks to ready workers, up to ``in_flight_per_worker`` per device."""
+        options = self.pool._options
+        for worker in self.pool._workers:
+            devices = worker.info.get("devices", 1)  # chunks the worker runs at once
+            while worker.ready and self.pending and worker.in_flight < options.in_flight_per_worker * devices:
+                index = self.pending.popleft()
+                ref = worker.actor.evaluate_chunk.remote(self.theta_ref, self.seed, index * self.chunk)
+                # The deadline allows for the chunks queued ahead of this one on the worker.
+                deadline = time.time() + options.chunk_timeout_s * (worker.in_flight // devices + 1)
+                self.in_flight[ref] = (index, worker, deadline)
+                worker.in_flight += 1
+                if (self.iteration, index) in options.kill_schedule - self.pool._kills_done:
+                    self.pool._kills_done.add((self.iteration, index))
+                    self.pool.kill_process(worker)
+
+    def collect(self, ref) -> None:
+        """A chunk's result is in: its scores, or its worker died and the chunk goes back on the queue."""
+        import ray
+        from ray.exceptions import GetTimeoutError, RayError, RayTaskError
+
+        index, worker, _ = self.in_flight.pop(ref)
+        worker.in_flight -= 1
+        try:
+            self.results[index] = ray.get(ref, timeout=self.pool._options.chunk_timeout_s)
+        except RayTaskError as error:
+            raise TrainingError(f"a worker failed evaluating chunk {index}: {error}") from None
+        except (RayError, GetTimeoutError):
+            self._fail(index, worker, kill=False)  # the worker died (or its node did): the chunk runs elsewhere
+            return
+        self.owners[index] = worker
+        self.nodes.add(worker.info.get("node_id", "?"))
+        if worker.first_result_s is None:
+            worker.first_result_s = time.time() - worker.created
+            self.first_results.append(worker.first_result_s)
+
+    def expire(self, now: float) -> None:
+        """Kills workers past a chunk's deadline (hung) and requeues the chunks of every dropped worker."""
+        for ref, (index, worker, deadline) in list(self.in_flight.items()):
+            if now > deadline:
+                del self.in_flight[ref]
+                self._fail(index, worker, kill=True)
+        for ref, (index, worker, _) in list(self.in_flight.items()):
+            if worker not in self.pool._workers:  # dropped: its other chunks go back too
+                del self.in_flight[ref]
+                self.pending.appendleft(index)
+                self.requeued += 1
+
+    def _fail(self, index: int, worker: _Worker, kill: bool) -> None:
+        self.failures[index] = self.failures.get(index, 0) + 1
+        if self.failures[index] >= MAX_CHUNK_FAILURES:
+            raise TrainingError(f"chunk {index} failed on {self.failures[index]} workers; giving up")
+        self.pending.appendleft(index)
+        self.requeued += 1
+        self.pool._drop(worker, kill=kill)
+
+    def result(self) -> IterationResult:
+        population = self.num_chunks * self.chunk
+        scores = np.zeros((population, 2), np.float32)
+        valid = np.zeros((population,), bool)
+        for index, chunk_scores in self.results.items():
+            scores[index * self.chunk:(index + 1) * self.chunk] = chunk_scores
+            valid[index * self.chunk:(index + 1) * self.chunk] = True
+        return IterationResult(scores, valid, self.requeued, self.first_results, sorted(self.nodes), self.owners)

@@ -1,0 +1,56 @@
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from pizero_ray import es
+
+
+def test_member_noise_is_the_same_alone_or_in_a_chunk():
+    key = es.iteration_key(1234)
+    alone = es.pair_noise(key, jnp.int32(5), 300)
+    chunk = jax.jit(jax.vmap(es.pair_noise, in_axes=(None, 0, None)), static_argnums=2)(key, jnp.arange(3, 8), 300)
+    np.testing.assert_array_equal(np.asarray(alone), np.asarray(chunk[2]))
+    assert not np.allclose(chunk[0], chunk[1])
+    other_iteration = es.pair_noise(es.iteration_key(1235), jnp.int32(5), 300)
+    assert not np.allclose(alone, other_iteration)
+
+
+def test_episode_key_differs_from_noise_stream_and_between_pairs():
+    key = es.iteration_key(7)
+    a, b = es.pair_episode_key(key, 0), es.pair_episode_key(key, 1)
+    assert not np.array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_iteration_seed_is_a_pure_function():
+    assert es.iteration_seed(0, 3) == es.iteration_seed(0, 3)
+    seeds = {es.iteration_seed(s, i) for s in range(3) for i in range(50)}
+    assert len(seeds) == 150
+    assert all(0 <= s < 2**32 for s in seeds)
+
+
+def test_low_rank_noise_sizes_and_structure():
+    perturbation = es.Perturbation(((12, 9), (9,), (9, 1)), 2)
+    assert perturbation.parameter_size == 12 * 9 + 9 + 9
+    assert perturbation.noise_size == (12 + 9) * 2 + 9 + (9 + 1) * 2
+    key = es.iteration_key(5)
+    directions = np.stack([np.asarray(es.expand_noise(es.pair_noise(key, i, perturbation.noise_size), perturbation))
+                           for i in range(400)])
+    assert directions.shape == (400, perturbation.parameter_size)
+    # each matrix's noise has rank r; its entries (and the biases') keep unit variance, as full-rank noise
+    assert np.linalg.matrix_rank(directions[0, :108].reshape(12, 9)) == 2
+    assert 0.85 < directions.var() < 1.15
+    assert abs(directions.mean()) < 0.05
+    np.testing.assert_array_equal(es.expand_noise(jnp.arange(5.0), es.Perturbation(((5,),), 0)), jnp.arange(5.0))
+
+
+def test_a_weighted_chunk_sum_of_low_rank_noise_is_the_sum_of_expanded_directions():
+    perturbation = es.Perturbation(((7, 5), (5,), (5, 3)), 3)
+    key = es.iteration_key(11)
+    weights = jnp.linspace(-1, 1, 12)
+    noise = [es.pair_noise(key, i, perturbation.noise_size) for i in range(12)]
+    direct = sum(float(weights[i]) * np.asarray(es.expand_noise(noise[i], perturbation)) for i in range(12))
+    np.testing.assert_allclose(es.weighted_noise_sum(weights, jnp.stack(noise), perturbation), direct,
+                               rtol=1e-5, atol=1e-5)
+    chunk = es.chunk_noise(key, jnp.int32(4), 3, perturbation.noise_size)
+    np.testing.assert_array_equal(np.asarray(chunk[1]), np.asarray(noise[5]))
+
