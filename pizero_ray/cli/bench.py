@@ -167,7 +167,6 @@ def driver_update(config: Config, repeats: int) -> float:
     from the noise they kept (``trainer_update_s``).
     """
     import jax
-    import jax.numpy as jnp
 
     import envs
     from pizero_ray import es
