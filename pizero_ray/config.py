@@ -12,6 +12,8 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
+from pizero_ray.presets import PRESETS, env_preset
+
 PLANNERS = ("muzero", "gumbel", "none")
 DECODERS = ("pointer", "flat")
 DECODER_INPUTS = ("state", "action", "visits", "value")
@@ -133,30 +135,13 @@ class Config:
         return cls.from_dict(json.loads(text))
 
 
-# Presets are overrides on top of the defaults. "default" is what learns best
-# on a 2-core machine (see docs/tsp.md); "paper" is the paper's table.
-PRESETS: dict[str, dict[str, Any]] = {
-    "default": {},
-    "paper": dict(
-        learning_rate=1e-3, sigma=0.1, population=1000, trials=5, hidden_size=64,
-        latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=10, chance_outcomes=3,
-        chunk_size=40,
-    ),
-    # For tests and smoke runs: compiles in seconds.
-    "tiny": dict(
-        hidden_size=8, latent_size=8, memory_size=8, num_abstract_actions=2,
-        num_simulations=2, population=4, chunk_size=2,
-    ),
-}
-
-
 def largest_divisor_at_most(number: int, limit: int) -> int:
     """The largest divisor of ``number`` that is at most ``limit`` (1 if ``limit`` < 1)."""
     return max((d for d in range(1, min(number, limit) + 1) if number % d == 0), default=1)
 
 
 def build_config(preset: str = "default", **overrides: Any) -> Config:
-    """Global preset, then the environment's own overrides for it, then explicit overrides.
+    """Global preset, then the environment's own overrides for it, then explicit overrides (pizero_ray.presets).
 
     Without an explicit ``chunk_size`` the chunk is the largest divisor of the
     population not above the preset's chunk size (32 by default).
@@ -164,11 +149,7 @@ def build_config(preset: str = "default", **overrides: Any) -> Config:
     if preset not in PRESETS:
         raise ConfigError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
     explicit = {k: v for k, v in overrides.items() if v is not None}
-    env_name = explicit.get("env", Config.env)
-    import envs
-
-    env_preset = envs.training_preset(env_name, preset) if env_name in envs.ENV_NAMES else {}
-    values = {**PRESETS[preset], **env_preset, **explicit}
+    values = {**PRESETS[preset], **env_preset(explicit.get("env", Config.env), preset), **explicit}
     population = values.get("population", Config.population)
     if "chunk_size" not in explicit and isinstance(population, int) and population > 0:
         # An unchosen chunk size follows the population (24 pairs: one chunk of 24, not an error);
