@@ -1,9 +1,8 @@
 """JAX-native environments for PiZero; see ``envs.base`` for the protocol.
 
-Each environment module provides ``make(**params) -> Environment`` and may
-provide ``TRAINING_PRESETS``: per training preset ("default", "paper", ...),
-config overrides that suit this environment (horizon-dependent population
-sizes, say), applied on top of the global preset.
+Each environment module provides ``make(**params) -> Environment``. The
+training presets that suit an environment (horizon-dependent population sizes,
+say) are the trainer's: ``pizero_ray.presets.ENV_PRESETS``.
 """
 
 from __future__ import annotations
@@ -43,9 +42,4 @@ def make(name: str, **env_args) -> Environment:
         raise ValueError(f"bad parameters for environment {name!r}: {env_args} ({error})") from None
 
 
-def training_preset(name: str, preset: str) -> dict[str, Any]:
-    """This environment's config overrides for a training preset (empty if none)."""
-    return dict(getattr(_module(name), "TRAINING_PRESETS", {}).get(preset, {}))
-
-
-__all__ = ["ENV_NAMES", "EnvSpec", "Environment", "Observation", "make", "training_preset"]
+__all__ = ["ENV_NAMES", "EnvSpec", "Environment", "Observation", "make"]

@@ -60,12 +60,6 @@ UP, RIGHT, DOWN, LEFT = range(NUM_MOVES)
 MAX_EXACT_COINS = 12
 RANDOM_WALKER_SEED = 0
 
-# Horizon 20 makes an episode twice as long as TSP10's: the global defaults
-# stay CPU-friendly without change (0.09 s per chunk of 32 pairs on a 2-core
-# CPU, against TSP10's 0.04 s).
-TRAINING_PRESETS = {"default": {}, "paper": {}}
-
-
 class CollectState(NamedTuple):
     agent: jax.Array  # [2] int32: (row, column) on the full grid, walls included
     coins: jax.Array  # [size, size] bool: a coin lies on this cell

@@ -67,13 +67,6 @@ LLOYD_ITERATIONS = 10
 CENTRE_ITERATIONS = 100  # Weiszfeld or Badoiu-Clarkson steps per Lloyd update
 RANDOM_PLACEMENT_SEED = 0
 
-# Episodes are num_facilities (3) steps long, a third of TSP10's, so three
-# episodes per member cost about what one TSP episode does (0.05 s against
-# 0.04 s per chunk of 32 pairs on a 2-core CPU) and smooth out how much the
-# instance alone moves a member's fitness.
-TRAINING_PRESETS = {"default": {"trials": 3}, "paper": {}}
-
-
 class FLPState(NamedTuple):
     clients: jax.Array  # [n, 2]
     facilities: jax.Array  # [m, 2]: the first t are placed, the rest are zeros

@@ -43,11 +43,8 @@ so with a long horizon ~1,090 is the complete random game's score, in line
 with the ~1,100 the paper quotes. A greedy game lasts 259 moves on average
 (10th-90th percentile 155-397, longest 675): horizon 200 cuts 69% of them.
 
-Training presets (``TRAINING_PRESETS``): an episode is up to 200 agent steps,
-20 times TSP10's, so "default" halves the population (about 2 s an iteration
-in one process on a 2-core machine; TSP10's default: 0.4 s); "paper" plays
-1000-move games, longer than any greedy game (explicit ``--env-arg`` values
-replace the preset's ``env_args`` as a whole).
+Training presets for 2048 (a smaller population; 1000-move games in "paper")
+are in ``pizero_ray.presets``.
 """
 
 from __future__ import annotations
@@ -66,12 +63,6 @@ BOARD_SIZE = 4
 MAX_EXPONENT = 16  # scale for exponents; a 4x4 board cannot in practice pass 2^16 = 65536
 TILE_ENCODINGS = ("log2", "one_hot")
 REFERENCE_SEED = 2048  # fixed keys of the random reference player
-
-TRAINING_PRESETS = {
-    "default": {"population": 128},
-    "paper": {"env_args": {"horizon": 1000}},
-}
-
 
 class Game2048State(NamedTuple):
     game: Any  # Jumanji's game_2048 State (board of exponents, step_count, action_mask, score, key)

@@ -57,11 +57,8 @@ keys under one fixed action sequence). A deterministic agent plays the same
 episode every time: extra ``trials`` add little, and evaluation scores have
 almost no spread.
 
-Training presets (``TRAINING_PRESETS``, both variants): "default" halves the
-population (episodes are 128 steps: about 2 s an iteration in one process on a
-2-core machine; TSP10's default: 0.4 s); "paper" plays Jumanji's full
-1000-step game (explicit ``--env-arg`` values replace the preset's
-``env_args`` as a whole).
+Training presets for both variants (a smaller population; Jumanji's full
+1000-step game in "paper") are in ``pizero_ray.presets``.
 """
 
 from __future__ import annotations
@@ -84,12 +81,6 @@ NEIGHBOURS = np.array([[-1, 0], [0, -1], [1, 0], [0, 1]])  # (row, col) offsets 
 PLANES = ("wall", "pellet", "power pellet", "ghost")
 REFERENCE_SEED = 7
 GHOST_COLOURS = ((230, 30, 30), (250, 160, 210), (40, 220, 230), (250, 170, 50))
-
-TRAINING_PRESETS = {
-    "default": {"population": 128},
-    "paper": {"env_args": {"horizon": 1000}},
-}
-
 
 class PacManState(NamedTuple):
     game: Any  # Jumanji's pac_man State; positions are Position(x=row, y=col), arrays hold (col, row)

@@ -56,15 +56,6 @@ NUM_PLANES = 4  # wall, goal, box, player
 DEFAULT_HORIZON = 50
 RANDOM_AGENT_SEED = 20170801  # fixed: the random reference is the same on every evaluation
 
-# Config overrides per training preset (on top of pizero_ray.config.PRESETS).
-# Episodes are five times longer than TSP10's (H = 50), so the CPU default
-# evaluates a quarter of the population per iteration.
-TRAINING_PRESETS = {
-    "default": {"population": 64, "chunk_size": 16},
-    "paper": {},  # the paper's table applies as is; H = 50 is this environment's default
-}
-
-
 class SokobanState(NamedTuple):
     walls: jax.Array  # [10, 10] bool
     goals: jax.Array  # [10, 10] bool

@@ -12,6 +12,9 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
+from pizero_ray.presets import PRESETS, env_preset
+from pizero_ray.settings import lookup, setting
+
 PLANNERS = ("muzero", "gumbel", "none")
 DECODERS = ("pointer", "flat")
 DECODER_INPUTS = ("state", "action", "visits", "value")
@@ -23,51 +26,74 @@ class ConfigError(ValueError):
     """A bad setting; the message is one line naming the value."""
 
 
+def _env_names() -> tuple[str, ...]:
+    from envs import ENV_NAMES  # local: keeps config importable without JAX set up
+
+    return ENV_NAMES
+
+
 @dataclass(frozen=True)
 class Config:
+    """Each setting's default, flag, help and choices are declared here once (pizero_ray.settings)."""
+
     # environment
-    env: str = "tsp"
-    env_args: tuple[tuple[str, Any], ...] = ()
+    env: str = setting("tsp", flag="--env", choices=_env_names, help="the environment")
+    env_args: tuple[tuple[str, Any], ...] = setting(
+        (), flag="--env-arg", metavar="KEY=VALUE",
+        help="an environment parameter, repeatable (e.g. num_cities=8); the value is read as JSON if it can be")
     # agent (paper: one hidden layer of 64, abstract state 64, k = 4)
-    hidden_size: int = 64
-    latent_size: int = 64
-    memory_size: int = 64
-    num_abstract_actions: int = 4
-    planner: str = "muzero"
-    num_simulations: int = 10
-    chance_outcomes: int = 0  # > 0: chance nodes (Stochastic MuZero search) with this many abstract outcomes
+    hidden_size: int = setting(64, flag="--hidden", help="hidden layer width")
+    latent_size: int = setting(64, flag="--latent", help="abstract state size")
+    memory_size: int = setting(64, flag="--memory", help="memory size")
+    num_abstract_actions: int = setting(4, flag="--abstract-actions", help="abstract actions k")
+    planner: str = setting("muzero", flag="--planner", choices=PLANNERS, help="the search over abstract actions")
+    num_simulations: int = setting(10, flag="--simulations", help="search budget K")
+    chance_outcomes: int = setting(
+        0, flag="--chance-outcomes",
+        help="abstract chance outcomes per afterstate (0: deterministic abstract model; > 0: chance nodes, "
+             "Stochastic MuZero search)")
     pb_c_init: float = 1.25
     pb_c_base: float = 19652.0
     abstract_discount: float = 1.0
-    root_noise: float = 0.0  # Dirichlet fraction (muzero) or Gumbel scale (gumbel)
-    decoder: str = "pointer"
-    decoder_inputs: tuple[str, ...] = DECODER_INPUTS
-    action_selection: str = "argmax"
-    action_noise: float = 1.0  # Gumbel scale when action_selection == "sample"
+    root_noise: float = setting(0.0, flag="--root-noise", help="Dirichlet fraction (muzero) or Gumbel scale (gumbel)")
+    decoder: str = setting("pointer", flag="--decoder", choices=DECODERS, help="the action decoder")
+    decoder_inputs: tuple[str, ...] = setting(DECODER_INPUTS, flag="--decoder-inputs", choices=DECODER_INPUTS,
+                                              help="what the decoder sees, comma-separated")
+    action_selection: str = setting("argmax", flag="--action-selection", choices=ACTION_SELECTIONS,
+                                    help="how the action is chosen (sample: a Gumbel-perturbed argmax)")
+    action_noise: float = setting(1.0, flag="--action-noise", help="Gumbel scale when action selection is sample")
     # evolution strategies
-    population: int = 256  # antithetic pairs per iteration (2x members)
-    trials: int = 1  # episodes per member, averaged
-    sigma: float = 0.1
-    perturbation_rank: int = 0  # 0: full-rank noise; r > 0: rank-r noise per weight matrix (EGGROLL; opt-in)
-    learning_rate: float = 0.01
-    weight_decay: float = 0.0
-    fitness_shaping: str = "centered_ranks"
-    chunk_size: int = 32  # pairs per unit of work; fixed so results never depend on workers
-    seed: int = 0
+    population: int = setting(256, flag="--population", help="antithetic pairs per iteration (2x members)")
+    trials: int = setting(1, flag="--trials", help="episodes per member, averaged")
+    sigma: float = setting(0.1, flag="--sigma", help="noise scale")
+    perturbation_rank: int = setting(
+        0, flag="--perturbation-rank",
+        help="0: full-rank noise; r > 0: rank-r noise per weight matrix, faster (EGGROLL; opt-in)")
+    learning_rate: float = setting(0.01, flag="--lr", help="Adam step size")
+    weight_decay: float = setting(0.0, flag="--weight-decay", help="L2 weight decay")
+    fitness_shaping: str = setting("centered_ranks", flag="--fitness-shaping", choices=FITNESS_SHAPINGS,
+                                   help="how scores become weights")
+    chunk_size: int = setting(32, flag="--chunk-size",
+                              help="pairs per unit of work (divides the population); fixed so results never "
+                                   "depend on the workers")
+    seed: int = setting(0, flag="--seed", help="the run's seed")
 
     def validate(self) -> "Config":
-        from envs import ENV_NAMES  # local: keeps config importable without JAX set up
-
         def need(condition: bool, message: str) -> None:
             if not condition:
                 raise ConfigError(message)
 
-        need(self.env in ENV_NAMES, f"unknown env {self.env!r} (choose from {', '.join(ENV_NAMES)})")
+        def need_choice(name: str) -> None:
+            """One of the setting's declared choices, else an error naming the value and the choices."""
+            value, allowed = getattr(self, name), lookup(Config, name).allowed
+            need(value in allowed, f"unknown {name.replace('_', ' ')} {value!r} (choose from {', '.join(allowed)})")
+
+        need_choice("env")
         for name in ("hidden_size", "latent_size", "memory_size", "num_abstract_actions",
                      "population", "trials", "chunk_size"):
             value = getattr(self, name)
             need(isinstance(value, int) and value > 0, f"{name} must be a positive integer, got {value!r}")
-        need(self.planner in PLANNERS, f"unknown planner {self.planner!r} (choose from {', '.join(PLANNERS)})")
+        need_choice("planner")
         need(self.planner == "none" or self.num_simulations > 0,
              f"num_simulations must be positive with planner {self.planner!r}, got {self.num_simulations}")
         need(self.num_abstract_actions >= 2 or self.planner == "none",
@@ -77,14 +103,12 @@ class Config:
         need(self.chance_outcomes == 0 or self.planner in ("muzero", "none"),
              f"chance nodes need the muzero planner (mctx has no stochastic Gumbel search), got {self.planner!r}")
         need(self.chance_outcomes != 1, "chance_outcomes must be 0 (none) or at least 2, got 1")
-        need(self.decoder in DECODERS, f"unknown decoder {self.decoder!r} (choose from {', '.join(DECODERS)})")
+        need_choice("decoder")
         need(len(self.decoder_inputs) > 0, "decoder_inputs must name at least one of " + ", ".join(DECODER_INPUTS))
         for item in self.decoder_inputs:
             need(item in DECODER_INPUTS, f"unknown decoder input {item!r} (choose from {', '.join(DECODER_INPUTS)})")
-        need(self.action_selection in ACTION_SELECTIONS,
-             f"unknown action selection {self.action_selection!r} (choose from {', '.join(ACTION_SELECTIONS)})")
-        need(self.fitness_shaping in FITNESS_SHAPINGS,
-             f"unknown fitness shaping {self.fitness_shaping!r} (choose from {', '.join(FITNESS_SHAPINGS)})")
+        need_choice("action_selection")
+        need_choice("fitness_shaping")
         need(isinstance(self.perturbation_rank, int) and self.perturbation_rank >= 0,
              f"perturbation_rank must be a non-negative integer, got {self.perturbation_rank!r}")
         need(self.sigma > 0, f"sigma must be positive, got {self.sigma}")
@@ -133,30 +157,13 @@ class Config:
         return cls.from_dict(json.loads(text))
 
 
-# Presets are overrides on top of the defaults. "default" is what learns best
-# on a 2-core machine (see docs/tsp.md); "paper" is the paper's table.
-PRESETS: dict[str, dict[str, Any]] = {
-    "default": {},
-    "paper": dict(
-        learning_rate=1e-3, sigma=0.1, population=1000, trials=5, hidden_size=64,
-        latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=10, chance_outcomes=3,
-        chunk_size=40,
-    ),
-    # For tests and smoke runs: compiles in seconds.
-    "tiny": dict(
-        hidden_size=8, latent_size=8, memory_size=8, num_abstract_actions=2,
-        num_simulations=2, population=4, chunk_size=2,
-    ),
-}
-
-
 def largest_divisor_at_most(number: int, limit: int) -> int:
     """The largest divisor of ``number`` that is at most ``limit`` (1 if ``limit`` < 1)."""
     return max((d for d in range(1, min(number, limit) + 1) if number % d == 0), default=1)
 
 
 def build_config(preset: str = "default", **overrides: Any) -> Config:
-    """Global preset, then the environment's own overrides for it, then explicit overrides.
+    """Global preset, then the environment's own overrides for it, then explicit overrides (pizero_ray.presets).
 
     Without an explicit ``chunk_size`` the chunk is the largest divisor of the
     population not above the preset's chunk size (32 by default).
@@ -164,11 +171,7 @@ def build_config(preset: str = "default", **overrides: Any) -> Config:
     if preset not in PRESETS:
         raise ConfigError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
     explicit = {k: v for k, v in overrides.items() if v is not None}
-    env_name = explicit.get("env", Config.env)
-    import envs
-
-    env_preset = envs.training_preset(env_name, preset) if env_name in envs.ENV_NAMES else {}
-    values = {**PRESETS[preset], **env_preset, **explicit}
+    values = {**PRESETS[preset], **env_preset(explicit.get("env", Config.env), preset), **explicit}
     population = values.get("population", Config.population)
     if "chunk_size" not in explicit and isinstance(population, int) and population > 0:
         # An unchosen chunk size follows the population (24 pairs: one chunk of 24, not an error);

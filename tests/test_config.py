@@ -1,9 +1,15 @@
 """The config: an unchosen chunk size follows the population; a chosen bad one is a one-line error."""
 
+import argparse
+import dataclasses
+import json
+
 import pytest
 
 from pizero_ray.cli import commands as cli
-from pizero_ray.config import ConfigError, build_config, largest_divisor_at_most
+from pizero_ray.config import Config, ConfigError, build_config, largest_divisor_at_most
+from pizero_ray.presets import ENV_PRESETS, PRESETS
+from pizero_ray.settings import declared, lookup
 
 
 @pytest.mark.parametrize("number, limit, expected", [(24, 32, 24), (1000, 32, 25), (64, 32, 32), (7, 32, 7),
@@ -29,3 +35,112 @@ def test_train_with_population_24_and_no_chunk_size_is_accepted():
     args = cli._parser().parse_args(["train", "--run-dir", "unused", "--env", "tsp", "--population", "24"])
     config = cli._train_config(args)
     assert (config.population, config.chunk_size) == (24, 24)
+
+
+# --------------------------------------------------------------------------- presets, pinned
+# What build_config gave before the environments' TRAINING_PRESETS moved to pizero_ray.presets
+# (computed from that code): the whole config, as the defaults plus what differs from them.
+
+OLD_DEFAULTS = {
+    "abstract_discount": 1.0, "action_noise": 1.0, "action_selection": "argmax", "chance_outcomes": 0,
+    "chunk_size": 32, "decoder": "pointer", "decoder_inputs": ["state", "action", "visits", "value"], "env": "tsp",
+    "env_args": {}, "fitness_shaping": "centered_ranks", "hidden_size": 64, "latent_size": 64,
+    "learning_rate": 0.01, "memory_size": 64, "num_abstract_actions": 4, "num_simulations": 10,
+    "pb_c_base": 19652.0, "pb_c_init": 1.25, "perturbation_rank": 0, "planner": "muzero", "population": 256,
+    "root_noise": 0.0, "seed": 0, "sigma": 0.1, "trials": 1, "weight_decay": 0.0,
+}
+PAPER = {"chance_outcomes": 3, "chunk_size": 40, "learning_rate": 0.001, "population": 1000, "trials": 5}
+TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "num_abstract_actions": 2,
+        "num_simulations": 2, "population": 4}
+
+
+@pytest.mark.parametrize("preset, overrides, differences", [
+    ("default", {}, {}),
+    ("paper", {}, PAPER),
+    ("tiny", {}, TINY),
+    ("default", {"env": "2048"}, {"env": "2048", "population": 128}),
+    ("paper", {"env": "2048"}, {**PAPER, "env": "2048", "env_args": {"horizon": 1000}}),
+    ("paper", {"env": "pacman"}, {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}}),
+    ("default", {"env": "pacman-po"}, {"env": "pacman-po", "population": 128}),
+    ("default", {"env": "sokoban"}, {"env": "sokoban", "population": 64, "chunk_size": 16}),
+    ("paper", {"env": "sokoban"}, {**PAPER, "env": "sokoban"}),
+    ("tiny", {"env": "sokoban"}, {**TINY, "env": "sokoban"}),
+    ("default", {"env": "flp-mean"}, {"env": "flp-mean", "trials": 3}),
+    ("paper", {"env": "collect"}, {**PAPER, "env": "collect"}),
+    # explicit values beat the environment's preset; --env-arg replaces its env_args as a whole
+    ("paper", {"env": "2048", "env_args": {"tile_encoding": "one_hot"}},
+     {**PAPER, "env": "2048", "env_args": {"tile_encoding": "one_hot"}}),
+    ("default", {"env": "sokoban", "population": 48}, {"env": "sokoban", "population": 48, "chunk_size": 16}),
+    ("default", {"env": "flp", "trials": 2}, {"env": "flp", "trials": 2}),
+    ("paper", {"env": "pacman", "population": 600, "seed": 7},
+     {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}, "population": 600, "seed": 7}),
+])
+def test_presets_give_the_configs_they_gave_before_they_moved(preset, overrides, differences):
+    assert json.loads(build_config(preset, **overrides).to_json()) == {**OLD_DEFAULTS, **differences}
+
+
+def test_environment_presets_name_real_environments_and_presets():
+    import envs
+
+    assert set(ENV_PRESETS) <= set(envs.ENV_NAMES)
+    assert all(set(by_preset) <= set(PRESETS) for by_preset in ENV_PRESETS.values())
+    assert not hasattr(envs, "training_preset")
+
+
+# --------------------------------------------------------------------------- settings declared once
+
+
+def test_every_option_of_train_is_a_declared_setting_or_the_commands_own():
+    from pizero_ray.trainer.options import PoolOptions, RunOptions
+
+    (sub,) = [a for a in cli._parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    train = {a.dest: a for a in sub.choices["train"]._actions}
+    settings = [s for cls in (Config, RunOptions) for s in declared(cls) if s.flag]
+    assert {s.name for s in settings} | {"help", "run_dir", "preset", "no_progress"} == set(train)
+    for s in settings:
+        assert train[s.name].option_strings == [s.flag] and train[s.name].default is None  # presets apply
+    run_fields = {f.name for f in dataclasses.fields(RunOptions)}
+    assert not run_fields & {f.name for f in dataclasses.fields(PoolOptions)}  # RunOptions.create tells them apart
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--lr", "0.5"], {"learning_rate": 0.5}),
+    (["--simulations", "3", "--abstract-actions", "3"], {"num_simulations": 3, "num_abstract_actions": 3}),
+    (["--hidden", "5", "--latent", "6", "--memory", "7"], {"hidden_size": 5, "latent_size": 6, "memory_size": 7}),
+    (["--decoder-inputs", "state, visits"], {"decoder_inputs": ("state", "visits")}),
+    (["--env-arg", "num_cities=8", "--env-arg", "mask_placed=false"],
+     {"env_args": (("mask_placed", False), ("num_cities", 8))}),
+    (["--preset", "paper", "--env", "pacman"], {"env": "pacman", "population": 1000, "env_args": (("horizon", 1000),)}),
+])
+def test_config_flags_set_their_fields(argv, expected):
+    config = cli._train_config(cli._parser().parse_args(["train", "--run-dir", "unused", *argv]))
+    assert {name: getattr(config, name) for name in expected} == expected
+
+
+def test_run_options_come_from_their_declared_defaults_and_flags():
+    from pizero_ray.trainer.options import PoolOptions, RunOptions
+
+    args = cli._parser().parse_args(["train", "--run-dir", "unused"])
+    assert cli._run_options(args, 400) == RunOptions(iterations=400)
+    assert RunOptions(iterations=1).pool.chunk_timeout_s == 300.0 == lookup(PoolOptions, "chunk_timeout_s").default
+    args = cli._parser().parse_args(["resume", "unused", "--iterations", "9", "--workers", "3", "--max-workers", "5",
+                                     "--no-pin-cores", "--chunk-timeout", "10", "--compile-cache", "none"])
+    options = cli._run_options(args, args.iterations)
+    assert options.iterations == 9 and options.pool.target_workers == 5 and not options.pool.pin_cores
+    assert (options.pool.workers, options.pool.chunk_timeout_s, options.pool.compile_cache) == (3, 10.0, "none")
+
+
+@pytest.mark.parametrize("values, message", [
+    ({"min_fraction": 0.0}, "--min-fraction must be in (0, 1], got 0.0"),
+    ({"min_fraction": 1.5}, "--min-fraction must be in (0, 1], got 1.5"),
+    ({"chunk_timeout_s": 0.0}, "--chunk-timeout must be positive, got 0.0"),
+    ({"workers": 3, "max_workers": 2}, "--max-workers 2 is below --workers 3"),
+    ({"workers": 0}, "--workers must be at least 1, got 0"),
+    ({"eval_every": -1}, "--eval-every must be at least 0, got -1"),
+])
+def test_run_options_validate_themselves(values, message):
+    from pizero_ray.trainer.options import RunOptions
+
+    with pytest.raises(ConfigError) as error:
+        RunOptions.create(iterations=1, **values)
+    assert str(error.value) == message

@@ -280,9 +280,10 @@ def test_empty_level_directory_is_an_error(tmp_path):
 
 def test_training_presets_build_valid_configs():
     from pizero_ray.config import build_config
+    from pizero_ray.presets import ENV_PRESETS
 
-    assert set(sokoban.TRAINING_PRESETS) >= {"default", "paper"}
+    assert set(ENV_PRESETS["sokoban"]) >= {"default", "paper"}
     for preset in ("default", "paper", "tiny"):
         config = build_config(preset, env="sokoban")
         assert config.env == "sokoban"
-    assert build_config("default", env="sokoban").population == sokoban.TRAINING_PRESETS["default"]["population"]
+    assert build_config("default", env="sokoban").population == ENV_PRESETS["sokoban"]["default"]["population"]

@@ -14,8 +14,8 @@ CONFIG = build_config("tiny", population=8)  # 4 chunks of 2 pairs per iteration
 def _train(path, compile_cache_dir, on_iteration=None, **options):
     run_dir.write_config(path, CONFIG)
     options = {"workers": 2, "checkpoint_every": 0, **options}
-    result = driver.train(path, CONFIG, driver.RunOptions(iterations=ITERATIONS, compile_cache=compile_cache_dir,
-                                                          **options), on_iteration=on_iteration)
+    result = driver.train(path, CONFIG, driver.RunOptions.create(iterations=ITERATIONS, compile_cache=compile_cache_dir,
+                                                                 **options), on_iteration=on_iteration)
     return result, [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
 
 
@@ -93,12 +93,13 @@ def test_gradient_parts_of_a_dead_worker_are_computed_by_the_driver(ray_session,
     import envs
     from pizero_ray import es
     from pizero_ray.es import population
-    from pizero_ray.trainer.pool import PoolOptions, WorkerPool
+    from pizero_ray.trainer.options import PoolOptions
+    from pizero_ray.trainer.pool import WorkerPool
 
     theta, layout = population.flat_params(CONFIG, envs.make(CONFIG.env))
     strategy = es.make_strategy(CONFIG, layout.perturbation)
     seed = strategy.ask(strategy.init(theta))
-    pool = WorkerPool(CONFIG, PoolOptions(max_workers=1, compile_cache=compile_cache_dir))
+    pool = WorkerPool(CONFIG, PoolOptions(workers=1, compile_cache=compile_cache_dir))
     try:
         theta_ref = ray_session.put(np.asarray(theta))
         result = pool.evaluate(theta_ref, seed)
@@ -204,10 +205,11 @@ def test_a_stop_interrupts_the_wait_for_slow_gradient_parts(ray_session, monkeyp
 
     import numpy as np
 
-    from pizero_ray.trainer.pool import Interrupted, PoolOptions, WorkerPool
+    from pizero_ray.trainer.options import PoolOptions
+    from pizero_ray.trainer.pool import Interrupted, WorkerPool
 
     _fake_workers(monkeypatch, part_delay_s=3600)
-    pool = WorkerPool(CONFIG, PoolOptions(max_workers=1))  # the chunk timeout is 300 s
+    pool = WorkerPool(CONFIG, PoolOptions(workers=1, compile_cache=None))  # the chunk timeout is 300 s
     try:
         result = pool.evaluate(ray_session.put(np.zeros(3, np.float32)), 1)
         stop_at = time.time() + 0.3
@@ -239,11 +241,13 @@ def test_a_straggler_hung_past_the_chunk_timeout_is_killed_and_replaced(ray_sess
 
     import numpy as np
 
-    from pizero_ray.trainer.pool import PoolOptions, WorkerPool
+    from pizero_ray.trainer.options import PoolOptions
+    from pizero_ray.trainer.pool import WorkerPool
 
     _fake_workers(monkeypatch, hang_on=(1, 2))  # chunk 1 of the iteration with seed 1
     timeout_s = 1.5
-    pool = WorkerPool(CONFIG, PoolOptions(max_workers=1, chunk_timeout_s=timeout_s, min_fraction=0.5))
+    pool = WorkerPool(CONFIG, PoolOptions(workers=1, compile_cache=None, chunk_timeout_s=timeout_s,
+                                           min_fraction=0.5))
     try:
         theta_ref = ray_session.put(np.zeros(3, np.float32))
         first = pool.evaluate(theta_ref, 1)

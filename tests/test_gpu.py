@@ -66,7 +66,7 @@ def test_one_and_two_gpu_workers_give_the_same_parameters(ray_cluster, tmp_path,
         for count in (1, 2):
             path = tmp_path / f"workers-{count}"
             run_dir.write_config(path, config)
-            options = driver.RunOptions(
+            options = driver.RunOptions.create(
                 iterations=3, workers=count, gpus_per_worker=1.0 / count, checkpoint_every=0,
                 compile_cache=compile_cache_dir, worker_resources=(("gpu_test_node", 1.0),))
             result = driver.train(path, config, options)

@@ -7,7 +7,8 @@ from pathlib import Path
 
 REPO = str(Path(__file__).resolve().parents[1])  # this checkout, not whichever one pip installed
 
-MATH = ["pizero_ray.config", "pizero_ray.agent", "pizero_ray.agent.networks", "pizero_ray.agent.planner",
+MATH = ["pizero_ray.config", "pizero_ray.settings", "pizero_ray.presets",
+        "pizero_ray.agent", "pizero_ray.agent.networks", "pizero_ray.agent.planner",
         "pizero_ray.agent.decoder", "pizero_ray.agent.pizero", "pizero_ray.agent.episodes", "pizero_ray.es",
         "pizero_ray.es.noise", "pizero_ray.es.shaping", "pizero_ray.es.strategy", "pizero_ray.es.population",
         "envs"]
@@ -30,6 +31,14 @@ def test_the_math_imports_neither_ray_nor_orbax_nor_the_shell():
     assert not {"ray", "orbax"} & loaded
     shell = {m for m in loaded if m.startswith(("pizero_ray.trainer", "pizero_ray.storage", "pizero_ray.cli"))}
     assert not shell
+
+
+def test_the_run_options_are_pure_dataclasses():
+    """The CLI builds its options from them for every command: they import neither Ray nor JAX."""
+    loaded = _loaded_after_importing(["pizero_ray.trainer.options"])
+    assert not {"ray", "orbax", "jax"} & loaded
+    assert {m for m in loaded if m.startswith("pizero_ray.trainer.")} == {
+        "pizero_ray.trainer.options", "pizero_ray.trainer.compile_cache"}
 
 
 def test_evaluating_a_saved_run_imports_neither_ray_nor_the_trainer(tmp_path):

@@ -27,7 +27,8 @@ def reference(ray_session, tmp_path_factory, compile_cache_dir):
     """An uninterrupted run: its directory and final parameter hash."""
     path = tmp_path_factory.mktemp("uninterrupted")
     run_dir.write_config(path, CONFIG)
-    options = driver.RunOptions(iterations=ITERATIONS, workers=2, checkpoint_every=3, compile_cache=compile_cache_dir)
+    options = driver.RunOptions.create(iterations=ITERATIONS, workers=2, checkpoint_every=3,
+                                       compile_cache=compile_cache_dir)
     return path, driver.train(path, CONFIG, options)["parameter_hash"]
 
 

@@ -16,8 +16,9 @@ from pizero_ray.trainer import driver
 def _train(path, iterations, workers, compile_cache_dir, cpus_per_worker=1.0, **overrides):
     config = build_config("tiny", **overrides)
     run_dir.write_config(path, config)
-    options = driver.RunOptions(iterations=iterations, workers=workers, compile_cache=compile_cache_dir,
-                                checkpoint_every=2, eval_every=1, eval_episodes=8, cpus_per_worker=cpus_per_worker)
+    options = driver.RunOptions.create(iterations=iterations, workers=workers, compile_cache=compile_cache_dir,
+                                       checkpoint_every=2, eval_every=1, eval_episodes=8,
+                                       cpus_per_worker=cpus_per_worker)
     return driver.train(path, config, options)
 
 
@@ -77,8 +78,8 @@ def test_resume_continues_exactly(ray_session, tmp_path, compile_cache_dir):
     path = tmp_path / "split"
     _train(path, 1, 2, compile_cache_dir)
     config = run_dir.read_config(path)
-    options = driver.RunOptions(iterations=3, workers=2, compile_cache=compile_cache_dir, checkpoint_every=2,
-                                eval_every=1, eval_episodes=8)
+    options = driver.RunOptions.create(iterations=3, workers=2, compile_cache=compile_cache_dir, checkpoint_every=2,
+                                       eval_every=1, eval_episodes=8)
     resumed = driver.train(path, config, options)
     assert resumed["parameter_hash"] == straight["parameter_hash"]
     assert [row["iteration"] for row in run_dir.read_metrics(path)] == [0, 1, 2, 3]

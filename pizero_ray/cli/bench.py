@@ -202,8 +202,8 @@ def trainer(config: Config, workers: int, iterations: int, cache_dir: str, cpus_
     with tempfile.TemporaryDirectory(prefix="pizero-bench-") as tmp:
         path = Path(tmp)
         run_dir.write_config(path, config)
-        options = driver.RunOptions(iterations=iterations, workers=workers, cpus_per_worker=cpus_per_worker,
-                                    gpus_per_worker=gpus_per_worker, checkpoint_every=0, compile_cache=cache_dir)
+        options = driver.RunOptions.create(iterations=iterations, workers=workers, cpus_per_worker=cpus_per_worker,
+                                           gpus_per_worker=gpus_per_worker, checkpoint_every=0, compile_cache=cache_dir)
         driver.train(path, config, options)
         rows = [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
     # The first iterations wait for the workers' start and, on a worker with

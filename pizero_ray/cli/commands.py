@@ -12,9 +12,13 @@ import json
 import os
 import signal
 import sys
+import types
+import typing
 from pathlib import Path
 
-from pizero_ray.config import DECODER_INPUTS, PRESETS, ConfigError, build_config
+from pizero_ray.config import Config, ConfigError, build_config
+from pizero_ray.presets import PRESETS
+from pizero_ray.settings import Setting, declared
 from pizero_ray.storage import run_dir as rundir
 from pizero_ray.storage.checkpoints import CheckpointError
 
@@ -63,62 +67,73 @@ def _env_arg(text: str) -> tuple[str, object]:
     return key, value
 
 
+_MINIMUM_WORDS = {0: "non-negative", 1: "positive"}
+
+
+def _comma_list(text: str) -> tuple[str, ...]:
+    """An argparse type: comma-separated items, blanks dropped (what they may be is the config's to check)."""
+    return tuple(item.strip() for item in text.split(",") if item.strip())
+
+
+def _argparse_type(s: Setting) -> dict:
+    """add_argument's type and action for a declared setting, from its field's type."""
+    kind = s.type
+    if typing.get_origin(kind) in (typing.Union, types.UnionType):
+        (kind,) = [arg for arg in typing.get_args(kind) if arg is not type(None)]
+    if kind is bool:  # a flag: --no-X turns a True default off
+        return {"action": "store_false" if s.default else "store_true"}
+    if typing.get_origin(kind) is tuple:
+        item = typing.get_args(kind)[0]
+        if typing.get_origin(item) is tuple:  # (key, value) pairs: --flag KEY=VALUE, repeated
+            return {"type": _env_arg, "action": "append"}
+        return {"type": _comma_list}
+    if kind is int and s.minimum is not None:
+        return {"type": _int_at_least(s.minimum, _MINIMUM_WORDS.get(s.minimum, f">= {s.minimum}"))}
+    return {"type": None if kind is str else kind}
+
+
+def _help(s: Setting, show_default: bool) -> str:
+    text = s.help
+    if s.choices is not None:
+        text += f" (one of {', '.join(s.allowed)})"
+    if show_default and s.has_default and s.default is not None and s.type is not bool:
+        text += f" (default {s.default:g})" if isinstance(s.default, float) else f" (default {s.default})"
+    return text.replace("%", "%%")
+
+
+def _add_settings(parser: argparse.ArgumentParser, cls: type, show_defaults: bool) -> None:
+    """One option per declared setting of ``cls`` with a flag; its default is None, so an absent option
+    leaves the dataclass default (or, for the config, the preset's value) in place."""
+    for s in declared(cls):
+        if s.flag is not None:
+            extra = {"metavar": s.metavar} if s.metavar else {}
+            parser.add_argument(s.flag, dest=s.name, default=None, help=_help(s, show_defaults),
+                                **_argparse_type(s), **extra)
+
+
+def _given(cls: type, args) -> dict:
+    """The declared settings of ``cls`` given on the command line, by field name."""
+    values = {}
+    for s in declared(cls):
+        value = getattr(args, s.name, None) if s.flag is not None else None
+        if value is not None:
+            values[s.name] = dict(value) if isinstance(value, list) else value  # KEY=VALUE pairs
+    return values
+
+
 def _add_run_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--iterations", type=_positive_int, help="total iterations to reach")
-    parser.add_argument("--workers", type=_positive_int, default=2, help="worker actors (default 2)")
-    parser.add_argument("--max-workers", type=_positive_int, default=None,
-                        help="start more actors, up to this many, as the cluster grows (default: --workers)")
-    parser.add_argument("--min-fraction", type=float, default=1.0,
-                        help="finish an iteration once this fraction of chunks is in, dropping stragglers "
-                             "(faster, no longer deterministic; default 1: complete)")
-    parser.add_argument("--chunk-timeout", type=float, default=300.0,
-                        help="seconds before a worker holding a chunk counts as hung (default 300)")
-    parser.add_argument("--cpus-per-worker", type=float, default=1.0)
-    parser.add_argument("--gpus-per-worker", type=float, default=0.0)
-    parser.add_argument("--no-pin-cores", action="store_true",
-                        help="leave CPU workers unpinned (default: each pins itself to cores no other worker holds)")
-    parser.add_argument("--address", default=None,
-                        help="Ray cluster address (default: RAY_ADDRESS, else a local instance)")
-    parser.add_argument("--checkpoint-every", type=_non_negative_int, default=25, help="iterations between checkpoints")
-    parser.add_argument("--keep-checkpoints", type=_positive_int, default=3)
-    parser.add_argument("--eval-every", type=_non_negative_int, default=0,
-                        help="evaluate the unperturbed agent every K iterations (0: never)")
-    parser.add_argument("--eval-episodes", type=_positive_int, default=256)
-    parser.add_argument("--compile-cache", default=None,
-                        help="JAX persistent compile cache dir, or 'none' (default ~/.cache/pizero-ray/jax)")
+    """How to run (RunOptions and its PoolOptions); shared by train, chaos and resume."""
+    from pizero_ray.trainer.options import RunOptions
+
+    _add_settings(parser, RunOptions, show_defaults=True)
     parser.add_argument("--no-progress", action="store_true", help="print one line per iteration instead of a bar")
 
 
 def _add_config_options(parser: argparse.ArgumentParser) -> None:
-    """What the run computes (the Config); shared by train and chaos."""
-    import envs
-
-    parser.add_argument("--env", default="tsp", help=f"one of {', '.join(envs.ENV_NAMES)}")
-    parser.add_argument("--env-arg", action="append", type=_env_arg, default=[], metavar="KEY=VALUE")
+    """What the run computes (the Config); shared by train and chaos. The defaults shown by --help would
+    be the 'default' preset's: presets and environments change them, so none is shown."""
     parser.add_argument("--preset", default="default", help=f"one of {', '.join(PRESETS)}")
-    parser.add_argument("--population", type=int, help="antithetic pairs per iteration")
-    parser.add_argument("--chunk-size", type=int, help="pairs per unit of work (divides the population)")
-    parser.add_argument("--trials", type=int, help="episodes per member")
-    parser.add_argument("--sigma", type=float)
-    parser.add_argument("--perturbation-rank", dest="perturbation_rank", type=int,
-                        help="0: full-rank noise (default); r > 0: rank-r noise per weight matrix, faster (EGGROLL)")
-    parser.add_argument("--lr", dest="learning_rate", type=float)
-    parser.add_argument("--weight-decay", type=float)
-    parser.add_argument("--fitness-shaping", choices=("centered_ranks", "none"))
-    parser.add_argument("--seed", type=int)
-    parser.add_argument("--planner", help="muzero, gumbel or none")
-    parser.add_argument("--simulations", dest="num_simulations", type=int)
-    parser.add_argument("--chance-outcomes", dest="chance_outcomes", type=int,
-                        help="abstract chance outcomes per afterstate (0: deterministic abstract model)")
-    parser.add_argument("--abstract-actions", dest="num_abstract_actions", type=int)
-    parser.add_argument("--hidden", dest="hidden_size", type=int)
-    parser.add_argument("--latent", dest="latent_size", type=int)
-    parser.add_argument("--memory", dest="memory_size", type=int)
-    parser.add_argument("--decoder", help="pointer or flat")
-    parser.add_argument("--decoder-inputs", help=f"comma-separated subset of {','.join(DECODER_INPUTS)}")
-    parser.add_argument("--action-selection", help="argmax or sample")
-    parser.add_argument("--action-noise", type=float)
-    parser.add_argument("--root-noise", type=float)
+    _add_settings(parser, Config, show_defaults=False)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -184,22 +199,8 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-_CONFIG_FIELDS = (
-    "population", "chunk_size", "trials", "sigma", "perturbation_rank", "learning_rate", "weight_decay",
-    "fitness_shaping", "seed",
-    "planner", "num_simulations", "chance_outcomes", "num_abstract_actions", "hidden_size", "latent_size",
-    "memory_size", "decoder", "action_selection", "action_noise", "root_noise",
-)
-
-
 def _train_config(args):
-    overrides = {name: getattr(args, name) for name in _CONFIG_FIELDS}
-    overrides["env"] = args.env
-    if args.env_arg:
-        overrides["env_args"] = dict(args.env_arg)
-    if args.decoder_inputs is not None:
-        overrides["decoder_inputs"] = tuple(x.strip() for x in args.decoder_inputs.split(",") if x.strip())
-    config = build_config(args.preset, **overrides)
+    config = build_config(args.preset, **_given(Config, args))
     import envs
 
     try:
@@ -210,31 +211,12 @@ def _train_config(args):
 
 
 def _run_options(args, iterations: int):
-    from pizero_ray.trainer.compile_cache import DEFAULT_DIR
-    from pizero_ray.trainer.driver import RunOptions
+    """The run options given (RunOptions validates them: a bad one is a one-line ConfigError)."""
+    from pizero_ray.trainer.options import RunOptions
 
-    if not 0 < args.min_fraction <= 1:
-        raise UsageError(f"--min-fraction must be in (0, 1], got {args.min_fraction}")
-    if args.chunk_timeout <= 0:
-        raise UsageError(f"--chunk-timeout must be positive, got {args.chunk_timeout}")
-    if args.max_workers is not None and args.max_workers < args.workers:
-        raise UsageError(f"--max-workers {args.max_workers} is below --workers {args.workers}")
-    return RunOptions(
-        iterations=iterations,
-        workers=args.workers,
-        max_workers=args.max_workers,
-        min_fraction=args.min_fraction,
-        chunk_timeout_s=args.chunk_timeout,
-        cpus_per_worker=args.cpus_per_worker,
-        gpus_per_worker=args.gpus_per_worker,
-        address=args.address,
-        checkpoint_every=args.checkpoint_every,
-        keep_checkpoints=args.keep_checkpoints,
-        eval_every=args.eval_every,
-        eval_episodes=args.eval_episodes,
-        compile_cache=args.compile_cache or str(DEFAULT_DIR),
-        pin_cores=not args.no_pin_cores,
-    )
+    # An empty text (--compile-cache '', --address '') means the default, as an absent option does.
+    given = {name: value for name, value in _given(RunOptions, args).items() if value != ""}
+    return RunOptions.create(**{**given, "iterations": iterations})
 
 
 def _existing_run(path_text: str) -> Path:
@@ -340,7 +322,8 @@ def _cmd_chaos(args) -> int:
     chosen = rng.choice(slots, size=min(args.kills, slots), replace=False)
     schedule = frozenset((int(s) // config.num_chunks, int(s) % config.num_chunks) for s in chosen)
     results = {}
-    for name, run_options in (("clean", options), ("chaos", dataclasses.replace(options, kill_schedule=schedule))):
+    chaos_options = dataclasses.replace(options, pool=dataclasses.replace(options.pool, kill_schedule=schedule))
+    for name, run_options in (("clean", options), ("chaos", chaos_options)):
         path = base / name
         rundir.write_config(path, config)
         print(f"pizero chaos: {name} run in {path}", file=sys.stderr, flush=True)

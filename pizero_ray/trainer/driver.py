@@ -18,7 +18,6 @@ import functools
 import signal
 import threading
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -28,49 +27,12 @@ from pizero_ray.config import Config
 from pizero_ray.storage import checkpoints, runs
 from pizero_ray.storage import run_dir as rundir
 from pizero_ray.trainer import compile_cache
-from pizero_ray.trainer.pool import Interrupted, PoolOptions, TrainingError, WorkerPool
+from pizero_ray.trainer.options import RunOptions
+from pizero_ray.trainer.pool import Interrupted, TrainingError, WorkerPool
 
 EVAL_SEED = 2_000_003  # fixed held-out episodes for the learning curve
 
 __all__ = ["RunOptions", "TrainingError", "train"]
-
-
-@dataclass(frozen=True)
-class RunOptions:
-    """How to run (not what to compute): none of this changes the parameters, except min_fraction < 1."""
-
-    iterations: int
-    workers: int = 2
-    max_workers: int | None = None  # grow up to this many when the cluster has room (default: workers)
-    cpus_per_worker: float = 1.0
-    gpus_per_worker: float = 0.0
-    address: str | None = None
-    checkpoint_every: int = 25
-    keep_checkpoints: int = 3
-    eval_every: int = 0
-    eval_episodes: int = 256
-    chunk_timeout_s: float = 300.0
-    worker_start_timeout_s: float = 900.0
-    min_fraction: float = 1.0
-    compile_cache: str | None = str(compile_cache.DEFAULT_DIR)
-    worker_resources: tuple[tuple[str, float], ...] = ()
-    pin_cores: bool = True  # CPU workers pin themselves to cores of their own (local_devices.CoreClaim)
-    kill_schedule: frozenset[tuple[int, int]] = frozenset()  # chaos: see pool.PoolOptions
-    restart: bool = False  # start over at iteration 0 though the run dir holds progress (checkpoints.prepare_resume)
-
-    def pool_options(self) -> PoolOptions:
-        return PoolOptions(
-            max_workers=max(self.workers, self.max_workers or 0),
-            cpus_per_worker=self.cpus_per_worker,
-            gpus_per_worker=self.gpus_per_worker,
-            compile_cache=self.compile_cache,
-            chunk_timeout_s=self.chunk_timeout_s,
-            worker_start_timeout_s=self.worker_start_timeout_s,
-            min_fraction=self.min_fraction,
-            worker_resources=self.worker_resources,
-            pin_cores=self.pin_cores,
-            kill_schedule=self.kill_schedule,
-        )
 
 
 class _StopRequest:
@@ -115,7 +77,7 @@ class _Run:
         if options.eval_every > 0:
             self.evaluator = episodes.make_evaluator(make_agent(config, env.spec), env, self.layout.unravel,
                                                      options.eval_episodes)
-        self.pool = WorkerPool(config, options.pool_options())
+        self.pool = WorkerPool(config, options.pool)
         self.writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)
         self.log = rundir.MetricsLog(run_path)
         self.wall_offset = self.metrics[-1]["wall_time_s"] if self.metrics else 0.0
@@ -199,11 +161,11 @@ def train(
     from pizero_ray.trainer import ray_setup
 
     connection = ray_setup.init(options.address)  # Ray first: it forks its processes before JAX starts its threads
-    compile_cache.enable(options.compile_cache)
+    compile_cache.enable(options.pool.compile_cache)
     run = _Run(run_path, config, options)
     if on_start:
         on_start({"connection": connection, "start_iteration": run.start_iteration, "parameters": run.layout.size,
-                  "workers": options.workers})
+                  "workers": options.pool.workers})
     stop = _StopRequest()
     try:
         with stop:

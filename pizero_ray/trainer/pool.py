@@ -20,6 +20,7 @@ from typing import Any, Callable
 import numpy as np
 
 from pizero_ray.config import Config
+from pizero_ray.trainer.options import PoolOptions
 
 POLL_S = 0.5  # how often the driver looks up from ray.wait (signals, deadlines)
 MAX_CHUNK_FAILURES = 5  # a chunk that kills this many workers is a bug, not bad luck
@@ -32,22 +33,6 @@ class TrainingError(RuntimeError):
 
 class Interrupted(Exception):
     """A stop was requested (SIGTERM/SIGINT) while an iteration was under way."""
-
-
-@dataclass(frozen=True)
-class PoolOptions:
-    max_workers: int
-    cpus_per_worker: float = 1.0
-    gpus_per_worker: float = 0.0
-    compile_cache: str | None = None
-    chunk_timeout_s: float = 300.0  # one chunk on a ready worker; a worker past it is hung
-    worker_start_timeout_s: float = 900.0  # no ready worker for this long: give up
-    in_flight_per_worker: int = 2  # per device: keeps a worker busy while its last result travels
-    min_fraction: float = 1.0  # < 1: finish once this fraction of chunks is in (not deterministic)
-    worker_resources: tuple[tuple[str, float], ...] = ()  # custom Ray resources each worker needs
-    pin_cores: bool = True  # CPU workers pin themselves to cores of their own where they can
-    # Chaos: (iteration, chunk) pairs; right after that chunk is handed out, its worker's process is SIGKILLed.
-    kill_schedule: frozenset[tuple[int, int]] = frozenset()
 
 
 @dataclass
@@ -104,10 +89,10 @@ class WorkerPool:
         self.kills += 1
 
     def top_up(self) -> None:
-        """Asks Ray for actors up to ``max_workers``; they start when the cluster has room."""
+        """Asks Ray for actors up to ``target_workers``; they start when the cluster has room."""
         from pizero_ray.trainer import workers
 
-        while len(self._workers) < self._options.max_workers:
+        while len(self._workers) < self._options.target_workers:
             actor = workers.start_worker(
                 self._config_json, self._options.cpus_per_worker, self._options.gpus_per_worker,
                 self._options.compile_cache, dict(self._options.worker_resources), self._options.pin_cores,

@@ -1,0 +1,78 @@
+"""Training presets: config overrides by name, global and per environment.
+
+``build_config(preset, env=...)`` applies ``PRESETS[preset]``, then
+``ENV_PRESETS[env][preset]`` (if any), then explicit overrides. The
+environments know nothing of these: the dependency runs config -> presets
+only. Explicit ``--env-arg`` values replace a preset's ``env_args`` as a whole.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+# "default" is what learns best on a 2-core machine (see docs/tsp.md); "paper" is the paper's table.
+PRESETS: dict[str, dict[str, Any]] = {
+    "default": {},
+    "paper": dict(
+        learning_rate=1e-3, sigma=0.1, population=1000, trials=5, hidden_size=64,
+        latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=10, chance_outcomes=3,
+        chunk_size=40,
+    ),
+    # For tests and smoke runs: compiles in seconds.
+    "tiny": dict(
+        hidden_size=8, latent_size=8, memory_size=8, num_abstract_actions=2,
+        num_simulations=2, population=4, chunk_size=2,
+    ),
+}
+
+# Horizon 20 makes a Collect episode twice as long as TSP10's: the global
+# defaults stay CPU-friendly without change (0.09 s per chunk of 32 pairs on a
+# 2-core CPU, against TSP10's 0.04 s).
+_COLLECT: dict[str, dict[str, Any]] = {"default": {}, "paper": {}}
+
+# FLP episodes are num_facilities (3) steps long, a third of TSP10's, so three
+# episodes per member cost about what one TSP episode does (0.05 s against
+# 0.04 s per chunk of 32 pairs on a 2-core CPU) and smooth out how much the
+# instance alone moves a member's fitness. Both objectives (flp, flp-mean).
+_FLP: dict[str, dict[str, Any]] = {"default": {"trials": 3}, "paper": {}}
+
+# 2048: an episode is up to 200 agent steps, 20 times TSP10's, so "default"
+# halves the population (about 2 s an iteration in one process on a 2-core
+# machine; TSP10's default: 0.4 s); "paper" plays 1000-move games, longer than
+# any greedy game (see envs/game2048.py for the reference scores).
+_GAME2048: dict[str, dict[str, Any]] = {
+    "default": {"population": 128},
+    "paper": {"env_args": {"horizon": 1000}},
+}
+
+# Pac-Man, both variants (pacman, pacman-po): "default" halves the population
+# (episodes are 128 steps: about 2 s an iteration in one process on a 2-core
+# machine; TSP10's default: 0.4 s); "paper" plays Jumanji's full 1000-step game.
+_PACMAN: dict[str, dict[str, Any]] = {
+    "default": {"population": 128},
+    "paper": {"env_args": {"horizon": 1000}},
+}
+
+# Sokoban episodes are five times longer than TSP10's (H = 50), so the CPU
+# default evaluates a quarter of the population per iteration; in "paper" the
+# paper's table applies as is (H = 50 is the environment's default).
+_SOKOBAN: dict[str, dict[str, Any]] = {
+    "default": {"population": 64, "chunk_size": 16},
+    "paper": {},
+}
+
+# Environment name (as envs.ENV_NAMES spells it) -> preset -> overrides on top of PRESETS[preset].
+ENV_PRESETS: dict[str, dict[str, dict[str, Any]]] = {
+    "collect": _COLLECT,
+    "flp": _FLP,
+    "flp-mean": _FLP,
+    "2048": _GAME2048,
+    "pacman": _PACMAN,
+    "pacman-po": _PACMAN,
+    "sokoban": _SOKOBAN,
+}
+
+
+def env_preset(env: str, preset: str) -> dict[str, Any]:
+    """The environment's overrides for a preset (empty if it has none)."""
+    return dict(ENV_PRESETS.get(env, {}).get(preset, {}))

@@ -1,0 +1,106 @@
+"""How a run is run (not what it computes): the run's and the worker pool's options.
+
+Each option's default, flag and help are declared once, in its field
+(pizero_ray.settings); the command line is generated from them. None of this
+changes the parameters, except ``min_fraction`` < 1. Pure dataclasses: no Ray.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from pizero_ray.config import ConfigError
+from pizero_ray.settings import check_minimums, lookup, setting
+from pizero_ray.trainer import compile_cache
+
+
+def _flag(cls: type, name: str) -> str:
+    return lookup(cls, name).flag
+
+
+@dataclass(frozen=True)
+class PoolOptions:
+    """The worker pool: how many actors, their resources, and how long a chunk may take."""
+
+    workers: int = setting(2, flag="--workers", minimum=1, help="worker actors")
+    max_workers: int | None = setting(
+        None, flag="--max-workers", minimum=1,
+        help="start more actors, up to this many, as the cluster grows (default: --workers)")
+    min_fraction: float = setting(
+        1.0, flag="--min-fraction",
+        help="finish an iteration once this fraction of chunks is in, dropping stragglers "
+             "(faster, no longer deterministic; 1: complete)")
+    chunk_timeout_s: float = setting(
+        300.0, flag="--chunk-timeout", metavar="SECONDS", help="seconds before a worker holding a chunk counts as hung")
+    cpus_per_worker: float = setting(
+        1.0, flag="--cpus-per-worker", help="CPUs per worker; a CPU worker runs a JAX CPU device on each")
+    gpus_per_worker: float = setting(0.0, flag="--gpus-per-worker", help="GPUs per worker (0: CPU workers)")
+    pin_cores: bool = setting(
+        True, flag="--no-pin-cores",
+        help="leave CPU workers unpinned (default: each pins itself to cores no other worker holds)")
+    compile_cache: str | None = setting(
+        str(compile_cache.DEFAULT_DIR), flag="--compile-cache",
+        help="JAX persistent compile cache dir, or 'none'")
+    worker_start_timeout_s: float = 900.0  # no ready worker for this long: give up
+    in_flight_per_worker: int = 2  # per device: keeps a worker busy while its last result travels
+    worker_resources: tuple[tuple[str, float], ...] = ()  # custom Ray resources each worker needs
+    # Chaos: (iteration, chunk) pairs; right after that chunk is handed out, its worker's process is SIGKILLed.
+    kill_schedule: frozenset[tuple[int, int]] = frozenset()
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    @property
+    def target_workers(self) -> int:
+        """The actors the pool keeps asking Ray for: ``max_workers``, and never fewer than ``workers``."""
+        return max(self.workers, self.max_workers or 0)
+
+    def validate(self) -> "PoolOptions":
+        """Raises ConfigError, one line naming the value, on an option out of range."""
+        check_minimums(self, ConfigError)
+        if not 0 < self.min_fraction <= 1:
+            raise ConfigError(f"{_flag(PoolOptions, 'min_fraction')} must be in (0, 1], got {self.min_fraction}")
+        if self.chunk_timeout_s <= 0:
+            raise ConfigError(f"{_flag(PoolOptions, 'chunk_timeout_s')} must be positive, got {self.chunk_timeout_s}")
+        if self.max_workers is not None and self.max_workers < self.workers:
+            raise ConfigError(f"{_flag(PoolOptions, 'max_workers')} {self.max_workers} is below "
+                              f"{_flag(PoolOptions, 'workers')} {self.workers}")
+        return self
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """A run: how far, on which cluster, checkpoints, evaluation; and its worker pool's options."""
+
+    iterations: int = setting(flag="--iterations", minimum=1, help="total iterations to reach")
+    pool: PoolOptions = field(default_factory=PoolOptions)
+    address: str | None = setting(
+        None, flag="--address", help="Ray cluster address (default: RAY_ADDRESS, else a local instance)")
+    checkpoint_every: int = setting(25, flag="--checkpoint-every", minimum=0,
+                                    help="iterations between periodic checkpoints (0: none)")
+    keep_checkpoints: int = setting(3, flag="--keep-checkpoints", minimum=1, help="newest checkpoints kept")
+    eval_every: int = setting(0, flag="--eval-every", minimum=0,
+                              help="evaluate the unperturbed agent every K iterations (0: never)")
+    eval_episodes: int = setting(256, flag="--eval-episodes", minimum=1, help="episodes per evaluation")
+    restart: bool = False  # start over at iteration 0 though the run dir holds progress (checkpoints.prepare_resume)
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> "RunOptions":
+        """Raises ConfigError, one line naming the value, on an option out of range (the pool's too)."""
+        check_minimums(self, ConfigError)
+        self.pool.validate()
+        return self
+
+    @classmethod
+    def create(cls, **values: Any) -> "RunOptions":
+        """RunOptions from the fields of RunOptions and of its PoolOptions, given by name side by side."""
+        pool_fields = {f.name for f in dataclasses.fields(PoolOptions)}
+        unknown = set(values) - pool_fields - {f.name for f in dataclasses.fields(cls)}
+        if unknown:
+            raise TypeError(f"RunOptions has no option {', '.join(sorted(unknown))}")
+        pool = PoolOptions(**{k: v for k, v in values.items() if k in pool_fields})
+        return cls(pool=pool, **{k: v for k, v in values.items() if k not in pool_fields})
