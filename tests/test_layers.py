@@ -53,9 +53,9 @@ from pizero_ray.cli.evaluate import evaluate_run
 path = Path({str(tmp_path)!r})
 config = build_config("tiny", env="tsp")
 run_dir.write_config(path, config)
-theta, opt_state, _, _ = runs.initial_state(config, envs.make("tsp"))
+state, _, _ = runs.initial_state(config, envs.make("tsp"))
 writer = checkpoints.CheckpointWriter(path)
-writer.save(3, theta, opt_state, {{"iteration": 3}})
+runs.save(writer, config, state._replace(iteration=3))
 writer.close()
 result = evaluate_run(path, episodes=4, seed=0)
 loaded = {{m.split(".")[0] for m in sys.modules}} | {{m for m in sys.modules if m.startswith("pizero_ray.")}}
