@@ -5,7 +5,7 @@
    into .venv; or, on an offline GPU machine, ``--python`` names an interpreter
    that already has a CUDA JAX and ``--wheels DIR`` holds wheels of whatever it
    lacks (scripts/fetch-device-wheels.sh makes that folder).
-2. The tests marked ``gpu`` (tests/test_gpu.py): kept and regenerated noise
+2. The tests marked ``gpu`` (tests/trainer/test_gpu.py): kept and regenerated noise
    bit-identical on the GPU, and the same parameter hash with 1 and 2 GPU workers.
 3. Whether the CPU and the GPU draw the same noise bits (a driver without a GPU
    regenerates the noise of a chunk whose GPU worker died).
@@ -194,7 +194,7 @@ def check(args) -> dict:
               "cpu_cores": os.cpu_count(), "python": installed, "commit": _commit()}
     steps = [
         ("gpu_tests", lambda: run([python, "-m", "pytest", "-q", "-m", "gpu", "-p", "no:cacheprovider",
-                                   "tests/test_gpu.py"], env, args.test_seconds)),
+                                   "tests/trainer/test_gpu.py"], env, args.test_seconds)),
         ("noise_cpu_vs_gpu",
          lambda: {"skipped": "no GPU"} if args.cpu_rehearsal else noise_across_backends(python, env)),
         ("bench", lambda: _bench(python, env, args)),

@@ -13,7 +13,6 @@ import json
 import os
 import time
 from pathlib import Path
-from typing import Iterable
 
 from pizero_ray.config import Config, ConfigError
 
@@ -109,10 +108,6 @@ class MetricsLog:
         self._file.write(json.dumps(row, sort_keys=True) + "\n")
         self._file.flush()
         os.fsync(self._file.fileno())
-
-    def write_all(self, rows: Iterable[dict]) -> None:
-        for row in rows:
-            self.write(row)
 
     def close(self) -> None:
         self._file.close()

@@ -1,4 +1,4 @@
-"""Workers die, nodes leave and join: the run completes with bit-identical parameters."""
+"""The elastic pool: workers die, nodes come and go, stragglers hang; the parameters stay bit-identical."""
 
 import pytest
 
