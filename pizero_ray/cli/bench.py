@@ -259,17 +259,8 @@ def traffic(config: Config, parameters: int) -> dict:
     }
 
 
-def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
-    """Every measurement of ``plan``; the Ray trainer's W workers share ``worker_gpus`` GPUs (0: CPU workers)."""
-    import jax
-
-    from pizero_ray.trainer import local_devices, ray_setup
-
-    ray_setup.init(None)  # before JAX starts its threads
-    devices = len(jax.local_devices())
-    modes = {"exact": (0, plan.chunk_size), "low_rank": (LOW_RANK, plan.low_rank_chunk_size)}
-    configs = {mode: bench_config(plan.population, chunk, perturbation_rank=rank, devices=devices)
-               for mode, (rank, chunk) in modes.items()}
+def _rollouts_and_sweeps(plan: BenchPlan, configs: dict, modes: dict, devices: int, progress) -> tuple:
+    """The in-process rollouts (main, one-device, straightforward), driver updates, and the sweeps."""
     measured, one_device = dict(configs), {}
     if devices > 1 and plan.one_device:  # how much of the speed is the devices': each mode again on one device
         one_device = {f"{mode}_one_device": 1 for mode in modes}
@@ -282,7 +273,6 @@ def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
     progress(f"rollouts ({', '.join(measured)}; interleaved): population {plan.population}, 10 simulations, "
              f"{devices} device(s)")
     main = rollouts(measured, plan.repeats, one_device)
-    straightforward = main.pop("straightforward", None)
     update_s, sweeps = {}, {"simulations": [], "population": []}
     for mode, (rank, chunk) in modes.items():
         progress(f"driver update, regenerating every chunk ({mode})")
@@ -303,29 +293,85 @@ def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
                     progress(f"sweep ({mode}): {kind} {value}")
                     result = rollout(config, plan.repeats)
                 sweeps[kind].append({"mode": mode, **result})
-    planners = planner_sweep(plan, progress, devices) if plan.planner_sweep else []
+    return main, update_s, sweeps
+
+
+def _ray_trainers(plan: BenchPlan, configs: dict, modes: dict, share, progress) -> tuple:
+    """The Ray trainer with 1 and 2 workers per mode, a worker joining with a warm cache, a worker's memory.
+
+    ``share(workers) -> (cpus, gpus)`` per worker.
+    """
     trainers = {}
-
-    def cpus_per_worker(workers: int) -> int:  # the workers share the cores the in-process rollout used
-        return max(1, devices // workers)
-
-    def gpus_per_worker(workers: int) -> float:  # GPU workers share the GPUs (fractions of one, if need be)
-        return worker_gpus / workers
-
     with tempfile.TemporaryDirectory(prefix="pizero-bench-cache-") as cache:
         for mode, counts in (("exact", plan.exact_trainer_workers), ("low_rank", plan.low_rank_trainer_workers)):
             for workers in counts:
                 cold = " (cold compile cache)" if not trainers else ""
-                progress(f"Ray trainer ({mode}): {workers} worker(s), {cpus_per_worker(workers)} CPU(s) "
-                         f"and {gpus_per_worker(workers):g} GPU each{cold}")
-                trainers[mode, workers] = trainer(configs[mode], workers, plan.trainer_iterations, cache,
-                                                  cpus_per_worker(workers), gpus_per_worker(workers))
+                cpus, gpus = share(workers)
+                progress(f"Ray trainer ({mode}): {workers} worker(s), {cpus} CPU(s) and {gpus:g} GPU each{cold}")
+                trainers[mode, workers] = trainer(configs[mode], workers, plan.trainer_iterations, cache, cpus, gpus)
             if mode == "exact":
                 progress("Ray trainer (exact): a new 1-CPU worker with the compile cache warm")
-                cached = trainer(configs["exact"], 1, 2, cache, gpus_per_worker=gpus_per_worker(1))
+                cached = trainer(configs["exact"], 1, 2, cache, gpus_per_worker=share(1)[1])
         progress("peak memory of a worker")
         worker_rss = {mode: worker_memory(configs[mode], cache) for mode in modes
                       if mode == "exact" or plan.low_rank_trainer_workers}
+    return trainers, cached, worker_rss
+
+
+def _mode_figures(mode: str, main: dict, update_s: dict, trainers: dict, share, straightforward) -> dict:
+    """One mode's figures: rollout speed, compile, driver update, speed-ups, the Ray trainer's efficiency."""
+    suffix = "" if mode == "exact" else "_low_rank"
+    result = {
+        f"rollout_agent_steps_per_s{suffix}": main[mode]["agent_steps_per_s"],
+        f"rollout_simulations_per_s{suffix}": main[mode]["simulations_per_s"],
+        f"rollout_iteration_s{suffix}": main[mode]["iteration_s"],
+        f"compile_s{suffix}": main[mode]["compile_s"],
+        f"driver_update_regenerating_s{suffix}": update_s[mode],
+    }
+    if f"{mode}_one_device" in main:
+        result[f"rollout_agent_steps_per_s{suffix}_one_device"] = main[f"{mode}_one_device"]["agent_steps_per_s"]
+    if straightforward:
+        for variant in (mode, f"{mode}_one_device"):
+            if variant in main:
+                result[f"speedup_vs_straightforward{suffix}{variant[len(mode):]}"] = (
+                    main[variant]["agent_steps_per_s"] / straightforward["agent_steps_per_s"])
+    for workers in (1, 2):  # the Ray trainer's figures, where this plan ran them
+        if (mode, workers) not in trainers:
+            continue
+        run = trainers[mode, workers]
+        label = "1_worker" if workers == 1 else "2_workers"
+        result[f"trainer_cpus_per_worker_{label}"] = share(workers)[0]
+        result[f"trainer_iteration_s_{label}{suffix}"] = run["iteration_s"]
+        efficiency = main[mode]["iteration_s"] / run["iteration_s"]
+        if workers == 2:
+            result[f"distributed_efficiency{suffix}"] = efficiency
+            result[f"trainer_update_s{suffix}"] = run["update_s"]
+            result[f"driver_update_share{suffix}"] = run["update_s"] / run["iteration_s"]
+        else:
+            result[f"distributed_efficiency_1_worker{suffix}"] = efficiency
+    return result
+
+
+def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
+    """Every measurement of ``plan``; the Ray trainer's W workers share ``worker_gpus`` GPUs (0: CPU workers)."""
+    import jax
+
+    from pizero_ray.trainer import local_devices, ray_setup
+
+    ray_setup.init(None)  # before JAX starts its threads
+    devices = len(jax.local_devices())
+    modes = {"exact": (0, plan.chunk_size), "low_rank": (LOW_RANK, plan.low_rank_chunk_size)}
+    configs = {mode: bench_config(plan.population, chunk, perturbation_rank=rank, devices=devices)
+               for mode, (rank, chunk) in modes.items()}
+    main, update_s, sweeps = _rollouts_and_sweeps(plan, configs, modes, devices, progress)
+    straightforward = main.pop("straightforward", None)
+    planners = planner_sweep(plan, progress, devices) if plan.planner_sweep else []
+
+    def share(workers: int) -> tuple[int, float]:
+        # The workers share the cores the in-process rollout used, and the GPUs (fractions of one, if need be).
+        return max(1, devices // workers), worker_gpus / workers
+
+    trainers, cached, worker_rss = _ray_trainers(plan, configs, modes, share, progress)
     result = {
         "device": str(jax.devices()[0]),
         "device_kind": jax.devices()[0].device_kind,
@@ -339,35 +385,7 @@ def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
     if straightforward:
         result["straightforward_agent_steps_per_s"] = straightforward["agent_steps_per_s"]
     for mode in modes:
-        suffix = "" if mode == "exact" else "_low_rank"
-        result.update({
-            f"rollout_agent_steps_per_s{suffix}": main[mode]["agent_steps_per_s"],
-            f"rollout_simulations_per_s{suffix}": main[mode]["simulations_per_s"],
-            f"rollout_iteration_s{suffix}": main[mode]["iteration_s"],
-            f"compile_s{suffix}": main[mode]["compile_s"],
-            f"driver_update_regenerating_s{suffix}": update_s[mode],
-        })
-        if f"{mode}_one_device" in main:
-            result[f"rollout_agent_steps_per_s{suffix}_one_device"] = main[f"{mode}_one_device"]["agent_steps_per_s"]
-        if straightforward:
-            for variant in (mode, f"{mode}_one_device"):
-                if variant in main:
-                    result[f"speedup_vs_straightforward{suffix}{variant[len(mode):]}"] = (
-                        main[variant]["agent_steps_per_s"] / straightforward["agent_steps_per_s"])
-        for workers in (1, 2):  # the Ray trainer's figures, where this plan ran them
-            if (mode, workers) not in trainers:
-                continue
-            run = trainers[mode, workers]
-            label = "1_worker" if workers == 1 else "2_workers"
-            result[f"trainer_cpus_per_worker_{label}"] = cpus_per_worker(workers)
-            result[f"trainer_iteration_s_{label}{suffix}"] = run["iteration_s"]
-            efficiency = main[mode]["iteration_s"] / run["iteration_s"]
-            if workers == 2:
-                result[f"distributed_efficiency{suffix}"] = efficiency
-                result[f"trainer_update_s{suffix}"] = run["update_s"]
-                result[f"driver_update_share{suffix}"] = run["update_s"] / run["iteration_s"]
-            else:
-                result[f"distributed_efficiency_1_worker{suffix}"] = efficiency
+        result.update(_mode_figures(mode, main, update_s, trainers, share, straightforward))
     result.update({
         "peak_rss_mb": local_devices.peak_rss_mb(),
         "worker_peak_rss_mb": worker_rss["exact"],
