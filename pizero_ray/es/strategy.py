@@ -33,8 +33,8 @@ class GradientParts(NamedTuple):
     way, and ``total`` adds the parts in chunk order.
     """
 
-    noise: object  # jit(iteration_seed, first_pair) -> noise [C, noise_size]
-    part: object  # jit(weights [C], noise [C, noise_size]) -> [D]
+    noise: Callable[[np.uint32, np.int32], jax.Array]  # jitted: (iteration seed, first pair) -> noise [C, noise_size]
+    part: Callable[[np.ndarray, jax.Array], jax.Array]  # jitted: (weights [C], noise [C, noise_size]) -> [D]
     chunk_size: int
     parameter_size: int
 

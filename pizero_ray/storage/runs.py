@@ -12,7 +12,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from envs.base import Environment
 from pizero_ray.config import Config, ConfigError
+from pizero_ray.es.population import FlatParams
 from pizero_ray.storage import checkpoints
 from pizero_ray.storage import run_dir as rundir
 
@@ -57,8 +59,8 @@ class LoadedRun(NamedTuple):
     config: Config
     iteration: int
     theta: np.ndarray  # flat parameters
-    env: object  # envs.Environment
-    layout: object  # population.FlatParams
+    env: Environment
+    layout: FlatParams
 
 
 def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
