@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import envs
+from envs.base import play_policy
 
 # Short episodes where the horizon is a parameter: these tests are about the protocol, not the game.
 SMALL = {"2048": {"horizon": 8}, "pacman": {"horizon": 8}, "pacman-po": {"horizon": 8}, "sokoban": {"num_levels": 20}}
@@ -66,3 +67,54 @@ def test_every_environment_renders_and_has_references(name):
     references = env.references(states, np.zeros(BATCH, np.float32))
     assert isinstance(references, dict) and REFERENCE_KEYS[name] <= set(references), references
     assert all(isinstance(value, float) and np.isfinite(value) for value in references.values()), references
+
+
+# ---------------------------------------------------------------- the shared reference player
+
+
+def _counting_step(state, action):
+    """A tiny deterministic environment: the state counts steps and knows when it ends; the reward is the action."""
+    count, done_at = state
+    count = count + 1
+    return (count, done_at), 100 * count, action.astype(jnp.float32), count >= done_at
+
+
+def _start(done_at):
+    return jnp.int32(0), jnp.int32(done_at)
+
+
+def test_play_policy_ignores_rewards_after_done_and_keeps_the_final_state():
+    # rewards 1, 10, 100, ... (10^t): the total shows which steps counted
+    playout = play_policy(_counting_step, lambda state, observation, t: 10**t, _start(3), horizon=5)
+    assert float(playout.total_reward) == 1 + 10 + 100  # not 11111: the steps after done pay nothing
+    assert int(playout.length) == 3
+    assert int(playout.final_state[0]) == 3  # steps 4 and 5 were taken but the state stopped where it ended
+
+
+def test_play_policy_without_done_plays_to_the_horizon():
+    playout = play_policy(_counting_step, lambda state, observation, t: 10**t, _start(99), horizon=4)
+    assert float(playout.total_reward) == 1111 and int(playout.length) == 4 and int(playout.final_state[0]) == 4
+
+
+def test_play_policy_passes_the_last_observation_and_the_step_index():
+    def policy(state, observation, t):
+        return observation + t  # 7 + 0, then 100 + 1, then 200 + 2
+
+    playout = play_policy(_counting_step, policy, _start(99), horizon=3, initial_observation=jnp.int32(7))
+    assert float(playout.total_reward) == 7 + 101 + 202
+
+    def state_only(state, observation, t):
+        assert observation is None  # no initial observation: the policy reads the state only
+        return state[0] + t
+
+    assert float(play_policy(_counting_step, state_only, _start(99), horizon=3).total_reward) == 0 + 2 + 4
+
+
+def test_play_policy_is_jittable_and_vmappable():
+    def play(done_at):
+        return play_policy(_counting_step, lambda state, observation, t: 10**t, _start(done_at), horizon=4)
+
+    playouts = jax.jit(jax.vmap(play))(jnp.array([1, 2, 3, 4, 9]))
+    np.testing.assert_array_equal(playouts.total_reward, [1, 11, 111, 1111, 1111])
+    np.testing.assert_array_equal(playouts.length, [1, 2, 3, 4, 4])
+    np.testing.assert_array_equal(playouts.final_state[0], [1, 2, 3, 4, 4])
