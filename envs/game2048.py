@@ -59,7 +59,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, identity_action_features
+from envs.base import Environment, EnvSpec, Observation, identity_action_features, play_policy
 
 NUM_MOVES = 4
 BOARD_SIZE = 4
@@ -160,16 +160,11 @@ def make_player(env: Environment, greedy: bool):
     """jit(initial states [E], keys [E]) -> (scores, highest tiles): a reference player to the horizon."""
 
     def one_episode(initial_state: Game2048State, key: jax.Array):
-        def body(carry, t):
-            state, done, score = carry
-            action = greedy_policy(state) if greedy else random_policy(state, jax.random.fold_in(key, t))
-            state, _, reward, step_done = env.step(state, action)
-            return (state, done | step_done, score + jnp.where(done, 0.0, reward)), None
+        def policy(state, _, t):
+            return greedy_policy(state) if greedy else random_policy(state, jax.random.fold_in(key, t))
 
-        carry = (initial_state, jnp.bool_(False), jnp.float32(0.0))
-        (state, _, score), _ = jax.lax.scan(body, carry, jnp.arange(env.spec.horizon))
-        # a finished game's board no longer changes, so the last board holds the episode's highest tile
-        return score, highest_tile(state.game.board)
+        playout = play_policy(env.step, policy, initial_state, env.spec.horizon)
+        return playout.total_reward, highest_tile(playout.final_state.game.board)
 
     return jax.jit(jax.vmap(one_episode))
 

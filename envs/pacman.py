@@ -73,7 +73,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, identity_action_features
+from envs.base import Environment, EnvSpec, Observation, identity_action_features, play_policy
 
 NUM_ACTIONS = 5  # Jumanji's: 4 moves and a no-op
 NUM_MOVES = 4
@@ -279,18 +279,17 @@ def random_policy(mask: jax.Array, key: jax.Array) -> jax.Array:
 def make_random_player(env: Environment):
     """jit(initial states [E], keys [E]) -> (scores, caught by a ghost, episode lengths) of the random player."""
 
-    def one_episode(initial_state: PacManState, key: jax.Array):
-        def body(carry, t):
-            state, mask, done, score, caught, length = carry
-            state, observation, reward, step_done = env.step(state, random_policy(mask, jax.random.fold_in(key, t)))
-            score = score + jnp.where(done, 0.0, reward)
-            caught = caught | (~done & state.game.dead)  # Jumanji clears ``dead`` if stepped on after the end
-            return (state, observation.action_mask, done | step_done, score, caught, length + ~done), None
+    def step(state: PacManState, action: jax.Array):
+        state, observation, reward, done = env.step(state, action)
+        return state, observation.action_mask, reward, done  # all the player reads of the observation
 
-        carry = (initial_state, action_mask_of(initial_state), jnp.bool_(False), jnp.float32(0.0),
-                 jnp.bool_(False), jnp.int32(0))
-        (_, _, _, score, caught, length), _ = jax.lax.scan(body, carry, jnp.arange(env.spec.horizon))
-        return score, caught, length
+    def one_episode(initial_state: PacManState, key: jax.Array):
+        def policy(state, mask, t):
+            return random_policy(mask, jax.random.fold_in(key, t))
+
+        playout = play_policy(step, policy, initial_state, env.spec.horizon, action_mask_of(initial_state))
+        # the state where the episode ended: a catch always ends it, so ``dead`` there says whether it was one
+        return playout.total_reward, playout.final_state.game.dead, playout.length
 
     return jax.jit(jax.vmap(one_episode))
 

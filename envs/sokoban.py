@@ -47,7 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from envs import boxoban, sokoban_generator
-from envs.base import Environment, EnvSpec, Observation, identity_action_features, require_int
+from envs.base import Environment, EnvSpec, Observation, identity_action_features, play_policy, require_int
 
 ROOM_SIZE = boxoban.ROOM_SIZE
 MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int32)  # up, down, left, right (row, column)
@@ -199,14 +199,7 @@ def random_agent_scores(step, initial_states: SokobanState, horizon: int, key: j
 
     def episode(state: SokobanState, episode_key: jax.Array) -> jax.Array:
         actions = jax.random.randint(episode_key, (horizon,), 0, len(MOVES))
-
-        def one_step(carry, action):
-            state, done, score = carry
-            state, _, reward, step_done = step(state, action)
-            return (state, done | step_done, score + jnp.where(done, 0.0, reward)), None
-
-        (_, _, score), _ = jax.lax.scan(one_step, (state, jnp.bool_(False), jnp.float32(0.0)), actions)
-        return score
+        return play_policy(step, lambda s, _, t: actions[t], state, horizon).total_reward
 
     keys = jax.random.split(key, initial_states.t.shape[0])
     return jax.vmap(episode)(initial_states, keys)
