@@ -81,11 +81,45 @@ class Environment(NamedTuple):
     episode_metrics: Callable[[State], dict[str, np.ndarray]] | None = None
 
 
-def require_int(env_name: str, name: str, value, low: int, high: int | None = None) -> None:
-    """A one-line ValueError naming the environment, the parameter and the value unless low <= value (<= high)."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < low or (high is not None and value > high):
-        bound = f"in {low}..{high}" if high is not None else f"at least {low}"
-        raise ValueError(f"{env_name}: {name} must be an integer {bound}, got {value!r}")
+# ---------------------------------------------------------------- checking parameters
+#
+# Every environment's ``make`` checks its parameters with these, so a bad one
+# always reads "<environment>: <parameter> must be <what>, got <value>" on one line.
+
+
+def _shown(value, limit: int = 80) -> str:
+    """``repr(value)`` on one line, cut to ``limit`` characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def require(ok: bool, env_name: str, name: str, value, expected: str) -> None:
+    """Raises ``ValueError("<env_name>: <name> must be <expected>, got <value>")`` unless ``ok``."""
+    if not ok:
+        raise ValueError(f"{env_name}: {name} must be {expected}, got {_shown(value)}")
+
+
+def require_int(env_name: str, name: str, value, low: int, high: int | None = None, *, odd: bool = False) -> None:
+    """An integer (not a bool) with low <= value (<= high), odd if asked."""
+    ok = isinstance(value, int) and not isinstance(value, bool) and low <= value and (high is None or value <= high)
+    bound = f"in {low}..{high}" if high is not None else f"at least {low}"
+    require(ok and (not odd or value % 2 == 1), env_name, name, value, f"{'an odd' if odd else 'an'} integer {bound}")
+
+
+def require_bool(env_name: str, name: str, value) -> None:
+    """True or False (not 0, 1 or a string)."""
+    require(isinstance(value, bool), env_name, name, value, "true or false")
+
+
+def require_choice(env_name: str, name: str, value, choices) -> None:
+    """One of ``choices``."""
+    ok = any(type(value) is type(choice) and value == choice for choice in choices)
+    require(ok, env_name, name, value, f"one of {', '.join(map(str, choices))}")
+
+
+def require_path(env_name: str, name: str, value) -> None:
+    """A non-empty string naming a file or directory (whether it exists is the loader's to say)."""
+    require(isinstance(value, str) and bool(value), env_name, name, value, "a file or directory path")
 
 
 # ---------------------------------------------------------------- playing reference policies

@@ -59,7 +59,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, identity_action_features, play_policy
+from envs.base import (
+    Environment,
+    EnvSpec,
+    Observation,
+    identity_action_features,
+    play_policy,
+    require_choice,
+    require_int,
+)
 
 NUM_MOVES = 4
 BOARD_SIZE = 4
@@ -97,10 +105,8 @@ def merge_rewards(board: jax.Array) -> jax.Array:
 
 def make(horizon: int = 200, tile_encoding: str = "log2") -> Environment:
     """2048 with episodes cut at ``horizon`` moves; ``tile_encoding`` is "log2" or "one_hot"."""
-    if not isinstance(horizon, int) or horizon <= 0:
-        raise ValueError(f"2048: horizon must be a positive integer, got {horizon!r}")
-    if tile_encoding not in TILE_ENCODINGS:
-        raise ValueError(f"2048: unknown tile_encoding {tile_encoding!r} (choose from {', '.join(TILE_ENCODINGS)})")
+    require_int("2048", "horizon", horizon, 1)
+    require_choice("2048", "tile_encoding", tile_encoding, TILE_ENCODINGS)
     from jumanji.environments import Game2048  # imported here: importing jumanji takes a second or two
 
     game = Game2048(board_size=BOARD_SIZE)

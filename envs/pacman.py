@@ -73,7 +73,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, identity_action_features, play_policy
+from envs.base import (
+    Environment,
+    EnvSpec,
+    Observation,
+    identity_action_features,
+    play_policy,
+    require,
+    require_bool,
+    require_int,
+)
 
 NUM_ACTIONS = 5  # Jumanji's: 4 moves and a no-op
 NUM_MOVES = 4
@@ -228,14 +237,13 @@ def partial_vector(maze: Maze, game, horizon: int, size: int) -> jax.Array:
 
 def make(partial: bool = False, horizon: int = 128, window_size: int | None = None) -> Environment:
     """Pac-Man cut at ``horizon`` steps; ``partial`` shows only a ``window_size`` window (odd, default 5)."""
+    require_bool("pacman", "partial", partial)
     name = "pacman-po" if partial else "pacman"
-    if not isinstance(horizon, int) or horizon <= 0:
-        raise ValueError(f"{name}: horizon must be a positive integer, got {horizon!r}")
-    if not partial and window_size is not None:
-        raise ValueError(f"pacman: window_size applies to pacman-po only, got {window_size!r}")
+    require_int(name, "horizon", horizon, 1)
+    if not partial:
+        require(window_size is None, name, "window_size", window_size, "left out (it applies to pacman-po only)")
     size = 5 if window_size is None else window_size
-    if not isinstance(size, int) or size < 1 or size % 2 == 0:
-        raise ValueError(f"{name}: window_size must be a positive odd integer, got {size!r}")
+    require_int(name, "window_size", size, 1, odd=True)
     from jumanji.environments import PacMan  # imported here: importing jumanji takes a second or two
 
     game = PacMan(time_limit=horizon)

@@ -47,7 +47,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from envs import boxoban, sokoban_generator
-from envs.base import Environment, EnvSpec, Observation, identity_action_features, play_policy, require_int
+from envs.base import (
+    Environment,
+    EnvSpec,
+    Observation,
+    identity_action_features,
+    play_policy,
+    require_int,
+    require_path,
+)
 
 ROOM_SIZE = boxoban.ROOM_SIZE
 MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int32)  # up, down, left, right (row, column)
@@ -179,8 +187,7 @@ def level_bank(levels: str | None, num_levels: int, num_boxes: int, generator_se
     require_int("sokoban", "generator_seed", generator_seed, 0)
     require_int("sokoban", "pull_rounds", pull_rounds, 1)
     if levels is not None:
-        if not isinstance(levels, str) or not levels:
-            raise ValueError(f"sokoban: levels must be a file or directory path, got {levels!r}")
+        require_path("sokoban", "levels", levels)
         try:
             return boxoban.load_levels(levels)
         except ValueError as error:

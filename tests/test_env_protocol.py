@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import envs
-from envs.base import play_policy
+from envs.base import play_policy, require, require_bool, require_choice, require_int, require_path
 
 # Short episodes where the horizon is a parameter: these tests are about the protocol, not the game.
 SMALL = {"2048": {"horizon": 8}, "pacman": {"horizon": 8}, "pacman-po": {"horizon": 8}, "sokoban": {"num_levels": 20}}
@@ -118,3 +118,43 @@ def test_play_policy_is_jittable_and_vmappable():
     np.testing.assert_array_equal(playouts.total_reward, [1, 11, 111, 1111, 1111])
     np.testing.assert_array_equal(playouts.length, [1, 2, 3, 4, 4])
     np.testing.assert_array_equal(playouts.final_state[0], [1, 2, 3, 4, 4])
+
+
+# ---------------------------------------------------------------- checking parameters
+
+
+@pytest.mark.parametrize(
+    "check, message",
+    [
+        (lambda: require_int("e", "n", 0, 1), "e: n must be an integer at least 1, got 0"),
+        (lambda: require_int("e", "n", 9, 1, 8), "e: n must be an integer in 1..8, got 9"),
+        (lambda: require_int("e", "n", True, 0), "e: n must be an integer at least 0, got True"),
+        (lambda: require_int("e", "n", 3.0, 1), "e: n must be an integer at least 1, got 3.0"),
+        (lambda: require_int("e", "n", 4, 1, odd=True), "e: n must be an odd integer at least 1, got 4"),
+        (lambda: require_int("e", "n", 5, 1, 3, odd=True), "e: n must be an odd integer in 1..3, got 5"),
+        (lambda: require_bool("e", "b", "true"), "e: b must be true or false, got 'true'"),
+        (lambda: require_bool("e", "b", 0), "e: b must be true or false, got 0"),
+        (lambda: require_choice("e", "c", "z", ("x", "y")), "e: c must be one of x, y, got 'z'"),
+        (lambda: require_choice("e", "c", True, (1, 2)), "e: c must be one of 1, 2, got True"),
+        (lambda: require_choice("e", "c", ["x"], ("x", "y")), "e: c must be one of x, y, got ['x']"),
+        (lambda: require_path("e", "p", ""), "e: p must be a file or directory path, got ''"),
+        (lambda: require_path("e", "p", None), "e: p must be a file or directory path, got None"),
+        (lambda: require(False, "e", "p", "a\nb", "fine"), "e: p must be fine, got 'a\\nb'"),
+    ],
+)
+def test_parameter_checks_raise_one_line_naming_environment_parameter_and_value(check, message):
+    with pytest.raises(ValueError) as error:
+        check()
+    assert str(error.value) == message
+
+
+def test_parameter_checks_pass_good_values_and_keep_odd_values_on_one_short_line():
+    require_int("e", "n", 1, 1)
+    require_int("e", "n", 8, 1, 8)
+    require_int("e", "n", 3, 1, odd=True)
+    require_bool("e", "b", False)
+    require_choice("e", "c", "y", ("x", "y"))
+    require_path("e", "p", "levels/")
+    with pytest.raises(ValueError) as error:
+        require_int("e", "n", np.zeros((20, 20)), 1)  # its repr spans 20 lines
+    assert "\n" not in str(error.value) and len(str(error.value)) < 150
