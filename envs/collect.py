@@ -37,7 +37,7 @@ subsets (NumPy, about 3 s per 1,000 instances of 12 coins). Measured over the
 1,000 instances ``pizero eval --episodes 1000 --seed 0`` plays (default
 parameters): greedy -1.031, random -8.900, optimal -0.405, with::
 
-    JAX_PLATFORMS=cpu python -c "import jax, numpy as np, envs; from pizero_ray.rollout import \\
+    JAX_PLATFORMS=cpu python -c "import jax, numpy as np, envs; from pizero_ray.agent.episodes import \\
       episode_reset_keys as k; env = envs.make('collect'); s, _ = jax.vmap(env.reset)(k(jax.random.PRNGKey(0), \\
       1000)); print(env.references(s, np.zeros(1000)))"
 """

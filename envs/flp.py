@@ -42,7 +42,7 @@ plays (default parameters)::
 
 with (``flp-mean`` for the second row)::
 
-    JAX_PLATFORMS=cpu python -c "import jax, numpy as np, envs; from pizero_ray.rollout import \\
+    JAX_PLATFORMS=cpu python -c "import jax, numpy as np, envs; from pizero_ray.agent.episodes import \\
       episode_reset_keys as k; env = envs.make('flp'); s, _ = jax.vmap(env.reset)(k(jax.random.PRNGKey(0), \\
       1000)); print(env.references(s, np.zeros(1000)))"
 
