@@ -18,7 +18,8 @@ space:
   action is legal; empty for continuous actions).
 
 Episodes have a fixed horizon: after ``done`` the rollout ignores rewards, so
-environments need not handle stepping past the end.
+environments need not handle stepping past the end. ``play_policy`` plays a
+reference policy (the ``references`` hook's) the same way.
 
 Two optional hooks live beside the rules, outside the jitted path:
 
@@ -80,11 +81,95 @@ class Environment(NamedTuple):
     episode_metrics: Callable[[State], dict[str, np.ndarray]] | None = None
 
 
-def require_int(env_name: str, name: str, value, low: int, high: int | None = None) -> None:
-    """A one-line ValueError naming the environment, the parameter and the value unless low <= value (<= high)."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < low or (high is not None and value > high):
-        bound = f"in {low}..{high}" if high is not None else f"at least {low}"
-        raise ValueError(f"{env_name}: {name} must be an integer {bound}, got {value!r}")
+# ---------------------------------------------------------------- checking parameters
+#
+# Every environment's ``make`` checks its parameters with these, so a bad one
+# always reads "<environment>: <parameter> must be <what>, got <value>" on one line.
+
+
+def _shown(value, limit: int = 80) -> str:
+    """``repr(value)`` on one line, cut to ``limit`` characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def require(ok: bool, env_name: str, name: str, value, expected: str) -> None:
+    """Raises ``ValueError("<env_name>: <name> must be <expected>, got <value>")`` unless ``ok``."""
+    if not ok:
+        raise ValueError(f"{env_name}: {name} must be {expected}, got {_shown(value)}")
+
+
+def require_int(env_name: str, name: str, value, low: int, high: int | None = None, *, odd: bool = False) -> None:
+    """An integer (not a bool) with low <= value (<= high), odd if asked."""
+    ok = isinstance(value, int) and not isinstance(value, bool) and low <= value and (high is None or value <= high)
+    bound = f"in {low}..{high}" if high is not None else f"at least {low}"
+    require(ok and (not odd or value % 2 == 1), env_name, name, value, f"{'an odd' if odd else 'an'} integer {bound}")
+
+
+def require_bool(env_name: str, name: str, value) -> None:
+    """True or False (not 0, 1 or a string)."""
+    require(isinstance(value, bool), env_name, name, value, "true or false")
+
+
+def require_choice(env_name: str, name: str, value, choices) -> None:
+    """One of ``choices``."""
+    ok = any(type(value) is type(choice) and value == choice for choice in choices)
+    require(ok, env_name, name, value, f"one of {', '.join(map(str, choices))}")
+
+
+def require_path(env_name: str, name: str, value) -> None:
+    """A non-empty string naming a file or directory (whether it exists is the loader's to say)."""
+    require(isinstance(value, str) and bool(value), env_name, name, value, "a file or directory path")
+
+
+# ---------------------------------------------------------------- playing reference policies
+
+
+class Playout(NamedTuple):
+    """What ``play_policy`` returns for one episode."""
+
+    total_reward: jax.Array  # float32: the rewards up to and including the step that ended the episode
+    final_state: State  # the state that step reached (or the state after ``horizon`` steps)
+    length: jax.Array  # int32: steps taken up to and including that step (``horizon`` if none ended it)
+
+
+def play_policy(
+    step: Callable[[State, jax.Array], tuple[State, Any, jax.Array, jax.Array]],
+    policy: Callable[[State, Any, jax.Array], jax.Array],
+    initial_state: State,
+    horizon: int,
+    initial_observation: Any = None,
+) -> Playout:
+    """Plays one episode of ``policy`` for ``horizon`` steps under ``jax.lax.scan``; pure and jittable.
+
+    ``policy(state, observation, t) -> action`` sees the current state, the
+    observation the last step returned (``initial_observation`` before the
+    first step) and the step index ``t`` (int32, for ``jax.random.fold_in``
+    of the policy's own key, or to index actions drawn in advance). A policy
+    that reads only the state needs no ``initial_observation``: then it always
+    gets None, and nothing of the observation is kept. ``step`` may return any
+    pytree as the observation, e.g. just the action mask, as long as
+    ``initial_observation`` has its structure.
+
+    As in the agent's episodes, every one of the ``horizon`` steps is taken
+    and rewards after ``done`` are ignored; unlike them, the state also stops
+    changing at ``done``, so ``final_state`` is where the episode ended
+    (environments need not handle stepping past the end). Batch with vmap.
+    """
+    keep_observation = initial_observation is not None
+
+    def body(carry, t):
+        state, observation, done, total, length = carry
+        next_state, next_observation, reward, step_done = step(state, policy(state, observation, t))
+        total = total + jnp.where(done, 0.0, reward)
+        length = length + ~done
+        next_state = jax.tree_util.tree_map(lambda old, new: jnp.where(done, old, new), state, next_state)
+        observation = next_observation if keep_observation else None
+        return (next_state, observation, done | step_done, total, length), None
+
+    carry = (initial_state, initial_observation, jnp.bool_(False), jnp.float32(0.0), jnp.int32(0))
+    (state, _, _, total, length), _ = jax.lax.scan(body, carry, jnp.arange(horizon))
+    return Playout(total, state, length)
 
 
 def identity_action_features(num_actions: int) -> jax.Array:

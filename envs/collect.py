@@ -37,7 +37,7 @@ subsets (NumPy, about 3 s per 1,000 instances of 12 coins). Measured over the
 1,000 instances ``pizero eval --episodes 1000 --seed 0`` plays (default
 parameters): greedy -1.031, random -8.900, optimal -0.405, with::
 
-    JAX_PLATFORMS=cpu python -c "import jax, numpy as np, envs; from pizero_ray.rollout import \\
+    JAX_PLATFORMS=cpu python -c "import jax, numpy as np, envs; from pizero_ray.agent.episodes import \\
       episode_reset_keys as k; env = envs.make('collect'); s, _ = jax.vmap(env.reset)(k(jax.random.PRNGKey(0), \\
       1000)); print(env.references(s, np.zeros(1000)))"
 """
@@ -51,7 +51,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, identity_action_features, require_int
+from envs.base import Environment, EnvSpec, Observation, identity_action_features, play_policy, require_int
 
 NUM_MOVES = 4
 # (row, column) offsets of the moves; row 0 is the top of the grid.
@@ -138,29 +138,19 @@ def greedy_action(state: CollectState) -> jax.Array:
     return jnp.where(row != state.agent[0], vertical, horizontal).astype(jnp.int32)
 
 
-def _walk(step, horizon: int, initial_state: CollectState, actions_of) -> jax.Array:
-    """Score of one episode where ``actions_of(state, t)`` chooses every move."""
-
-    def body(carry, t):
-        state, total = carry
-        state, _, reward, _ = step(state, actions_of(state, t))
-        return (state, total + reward), None
-
-    (_, total), _ = jax.lax.scan(body, (initial_state, jnp.float32(0.0)), jnp.arange(horizon))
-    return total
-
-
 def walker_scores(step, horizon: int, initial_states: CollectState) -> tuple[jax.Array, jax.Array]:
     """Scores [E] of the greedy and the random walker on a batch of initial states."""
     episodes = initial_states.t.shape[0]
     keys = jax.random.split(jax.random.PRNGKey(RANDOM_WALKER_SEED), episodes)
 
     def greedy(state):
-        return _walk(step, horizon, state, lambda s, t: greedy_action(s))
+        return play_policy(step, lambda s, _, t: greedy_action(s), state, horizon).total_reward
 
     def random(state, key):
-        return _walk(step, horizon, state, lambda s, t: jax.random.randint(jax.random.fold_in(key, t), (), 0,
-                                                                           NUM_MOVES))
+        def policy(s, _, t):
+            return jax.random.randint(jax.random.fold_in(key, t), (), 0, NUM_MOVES)
+
+        return play_policy(step, policy, state, horizon).total_reward
 
     return jax.jit(jax.vmap(greedy))(initial_states), jax.jit(jax.vmap(random))(initial_states, keys)
 

@@ -42,7 +42,7 @@ plays (default parameters)::
 
 with (``flp-mean`` for the second row)::
 
-    JAX_PLATFORMS=cpu python -c "import jax, numpy as np, envs; from pizero_ray.rollout import \\
+    JAX_PLATFORMS=cpu python -c "import jax, numpy as np, envs; from pizero_ray.agent.episodes import \\
       episode_reset_keys as k; env = envs.make('flp'); s, _ = jax.vmap(env.reset)(k(jax.random.PRNGKey(0), \\
       1000)); print(env.references(s, np.zeros(1000)))"
 
@@ -60,7 +60,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, require_int
+from envs.base import Environment, EnvSpec, Observation, require_choice, require_int
 
 OBJECTIVES = ("max", "mean")
 LLOYD_ITERATIONS = 10
@@ -88,10 +88,10 @@ def cost(clients: jax.Array, facilities: jax.Array, objective: str) -> jax.Array
 
 
 def make(num_clients: int = 20, num_facilities: int = 3, objective: str = "max") -> Environment:
-    require_int("flp", "num_clients", num_clients, 1)
-    require_int("flp", "num_facilities", num_facilities, 1, num_clients)
-    if objective not in OBJECTIVES:
-        raise ValueError(f"flp: objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
+    require_choice("flp", "objective", objective, OBJECTIVES)
+    name = "flp" if objective == "max" else f"flp-{objective}"
+    require_int(name, "num_clients", num_clients, 1)
+    require_int(name, "num_facilities", num_facilities, 1, num_clients)
     n, m = num_clients, num_facilities
 
     def observe(state: FLPState) -> Observation:
@@ -125,7 +125,6 @@ def make(num_clients: int = 20, num_facilities: int = 3, objective: str = "max")
         action_low=0.0,
         action_high=1.0,
     )
-    name = "flp" if objective == "max" else f"flp-{objective}"
     return Environment(
         name, spec, reset, step,
         render=functools.partial(render, objective=objective),

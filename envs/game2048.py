@@ -56,7 +56,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, identity_action_features
+from envs.base import (
+    Environment,
+    EnvSpec,
+    Observation,
+    identity_action_features,
+    play_policy,
+    require_choice,
+    require_int,
+)
 
 NUM_MOVES = 4
 BOARD_SIZE = 4
@@ -88,10 +96,8 @@ def merge_rewards(board: jax.Array) -> jax.Array:
 
 def make(horizon: int = 200, tile_encoding: str = "log2") -> Environment:
     """2048 with episodes cut at ``horizon`` moves; ``tile_encoding`` is "log2" or "one_hot"."""
-    if not isinstance(horizon, int) or horizon <= 0:
-        raise ValueError(f"2048: horizon must be a positive integer, got {horizon!r}")
-    if tile_encoding not in TILE_ENCODINGS:
-        raise ValueError(f"2048: unknown tile_encoding {tile_encoding!r} (choose from {', '.join(TILE_ENCODINGS)})")
+    require_int("2048", "horizon", horizon, 1)
+    require_choice("2048", "tile_encoding", tile_encoding, TILE_ENCODINGS)
     from jumanji.environments import Game2048  # imported here: importing jumanji takes a second or two
 
     game = Game2048(board_size=BOARD_SIZE)
@@ -151,16 +157,11 @@ def make_player(env: Environment, greedy: bool):
     """jit(initial states [E], keys [E]) -> (scores, highest tiles): a reference player to the horizon."""
 
     def one_episode(initial_state: Game2048State, key: jax.Array):
-        def body(carry, t):
-            state, done, score = carry
-            action = greedy_policy(state) if greedy else random_policy(state, jax.random.fold_in(key, t))
-            state, _, reward, step_done = env.step(state, action)
-            return (state, done | step_done, score + jnp.where(done, 0.0, reward)), None
+        def policy(state, _, t):
+            return greedy_policy(state) if greedy else random_policy(state, jax.random.fold_in(key, t))
 
-        carry = (initial_state, jnp.bool_(False), jnp.float32(0.0))
-        (state, _, score), _ = jax.lax.scan(body, carry, jnp.arange(env.spec.horizon))
-        # a finished game's board no longer changes, so the last board holds the episode's highest tile
-        return score, highest_tile(state.game.board)
+        playout = play_policy(env.step, policy, initial_state, env.spec.horizon)
+        return playout.total_reward, highest_tile(playout.final_state.game.board)
 
     return jax.jit(jax.vmap(one_episode))
 

@@ -70,7 +70,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, identity_action_features
+from envs.base import (
+    Environment,
+    EnvSpec,
+    Observation,
+    identity_action_features,
+    play_policy,
+    require,
+    require_bool,
+    require_int,
+)
 
 NUM_ACTIONS = 5  # Jumanji's: 4 moves and a no-op
 NUM_MOVES = 4
@@ -219,14 +228,13 @@ def partial_vector(maze: Maze, game, horizon: int, size: int) -> jax.Array:
 
 def make(partial: bool = False, horizon: int = 128, window_size: int | None = None) -> Environment:
     """Pac-Man cut at ``horizon`` steps; ``partial`` shows only a ``window_size`` window (odd, default 5)."""
+    require_bool("pacman", "partial", partial)
     name = "pacman-po" if partial else "pacman"
-    if not isinstance(horizon, int) or horizon <= 0:
-        raise ValueError(f"{name}: horizon must be a positive integer, got {horizon!r}")
-    if not partial and window_size is not None:
-        raise ValueError(f"pacman: window_size applies to pacman-po only, got {window_size!r}")
+    require_int(name, "horizon", horizon, 1)
+    if not partial:
+        require(window_size is None, name, "window_size", window_size, "left out (it applies to pacman-po only)")
     size = 5 if window_size is None else window_size
-    if not isinstance(size, int) or size < 1 or size % 2 == 0:
-        raise ValueError(f"{name}: window_size must be a positive odd integer, got {size!r}")
+    require_int(name, "window_size", size, 1, odd=True)
     from jumanji.environments import PacMan  # imported here: importing jumanji takes a second or two
 
     game = PacMan(time_limit=horizon)
@@ -270,18 +278,17 @@ def random_policy(mask: jax.Array, key: jax.Array) -> jax.Array:
 def make_random_player(env: Environment):
     """jit(initial states [E], keys [E]) -> (scores, caught by a ghost, episode lengths) of the random player."""
 
-    def one_episode(initial_state: PacManState, key: jax.Array):
-        def body(carry, t):
-            state, mask, done, score, caught, length = carry
-            state, observation, reward, step_done = env.step(state, random_policy(mask, jax.random.fold_in(key, t)))
-            score = score + jnp.where(done, 0.0, reward)
-            caught = caught | (~done & state.game.dead)  # Jumanji clears ``dead`` if stepped on after the end
-            return (state, observation.action_mask, done | step_done, score, caught, length + ~done), None
+    def step(state: PacManState, action: jax.Array):
+        state, observation, reward, done = env.step(state, action)
+        return state, observation.action_mask, reward, done  # all the player reads of the observation
 
-        carry = (initial_state, action_mask_of(initial_state), jnp.bool_(False), jnp.float32(0.0),
-                 jnp.bool_(False), jnp.int32(0))
-        (_, _, _, score, caught, length), _ = jax.lax.scan(body, carry, jnp.arange(env.spec.horizon))
-        return score, caught, length
+    def one_episode(initial_state: PacManState, key: jax.Array):
+        def policy(state, mask, t):
+            return random_policy(mask, jax.random.fold_in(key, t))
+
+        playout = play_policy(step, policy, initial_state, env.spec.horizon, action_mask_of(initial_state))
+        # the state where the episode ended: a catch always ends it, so ``dead`` there says whether it was one
+        return playout.total_reward, playout.final_state.game.dead, playout.length
 
     return jax.jit(jax.vmap(one_episode))
 

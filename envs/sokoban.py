@@ -47,7 +47,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from envs import boxoban, sokoban_generator
-from envs.base import Environment, EnvSpec, Observation, identity_action_features, require_int
+from envs.base import (
+    Environment,
+    EnvSpec,
+    Observation,
+    identity_action_features,
+    play_policy,
+    require_int,
+    require_path,
+)
 
 ROOM_SIZE = boxoban.ROOM_SIZE
 MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int32)  # up, down, left, right (row, column)
@@ -170,8 +178,7 @@ def level_bank(levels: str | None, num_levels: int, num_boxes: int, generator_se
     require_int("sokoban", "generator_seed", generator_seed, 0)
     require_int("sokoban", "pull_rounds", pull_rounds, 1)
     if levels is not None:
-        if not isinstance(levels, str) or not levels:
-            raise ValueError(f"sokoban: levels must be a file or directory path, got {levels!r}")
+        require_path("sokoban", "levels", levels)
         try:
             return boxoban.load_levels(levels)
         except ValueError as error:
@@ -190,14 +197,7 @@ def random_agent_scores(step, initial_states: SokobanState, horizon: int, key: j
 
     def episode(state: SokobanState, episode_key: jax.Array) -> jax.Array:
         actions = jax.random.randint(episode_key, (horizon,), 0, len(MOVES))
-
-        def one_step(carry, action):
-            state, done, score = carry
-            state, _, reward, step_done = step(state, action)
-            return (state, done | step_done, score + jnp.where(done, 0.0, reward)), None
-
-        (_, _, score), _ = jax.lax.scan(one_step, (state, jnp.bool_(False), jnp.float32(0.0)), actions)
-        return score
+        return play_policy(step, lambda s, _, t: actions[t], state, horizon).total_reward
 
     keys = jax.random.split(key, initial_states.t.shape[0])
     return jax.vmap(episode)(initial_states, keys)

@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation
+from envs.base import Environment, EnvSpec, Observation, require_bool, require_int
 
 MAX_EXACT_CITIES = 12
 ACTION_FEATURE_SIZE = 11
@@ -40,8 +40,8 @@ def tour_length(coordinates: jax.Array, tour: jax.Array) -> jax.Array:
 
 
 def make(num_cities: int = 10, mask_placed: bool = True) -> Environment:
-    if num_cities < 3:
-        raise ValueError(f"tsp: num_cities must be at least 3, got {num_cities}")
+    require_int("tsp", "num_cities", num_cities, 3)
+    require_bool("tsp", "mask_placed", mask_placed)
     n = num_cities
 
     def observe(state: TSPState) -> Observation:

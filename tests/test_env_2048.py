@@ -173,14 +173,22 @@ def test_render_draws_the_board(env):
     assert len(np.unique(image.reshape(-1, 3), axis=0)) > 10  # coloured tiles and text
 
 
-def test_bad_parameters_are_one_line_errors():
-    for horizon in (0, -5, 2.5):
-        with pytest.raises(ValueError, match="horizon"):
-            envs.make("2048", horizon=horizon)
-    with pytest.raises(ValueError, match="tile_encoding 'bits'"):
-        envs.make("2048", tile_encoding="bits")
-    with pytest.raises(ValueError, match="bad parameters"):
-        envs.make("2048", board=5)
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        ({"horizon": 0}, "2048: horizon must be an integer at least 1, got 0"),
+        ({"horizon": -5}, "2048: horizon must be an integer at least 1, got -5"),
+        ({"horizon": 2.5}, "2048: horizon must be an integer at least 1, got 2.5"),
+        ({"horizon": "200"}, "2048: horizon must be an integer at least 1, got '200'"),
+        ({"tile_encoding": "bits"}, "2048: tile_encoding must be one of log2, one_hot, got 'bits'"),
+        ({"tile_encoding": None}, "2048: tile_encoding must be one of log2, one_hot, got None"),
+        ({"board": 5}, "bad parameters for environment '2048'"),
+    ],
+)
+def test_bad_parameters_are_one_line_errors(args, message):
+    with pytest.raises(ValueError) as error:
+        envs.make("2048", **args)
+    assert message in str(error.value) and "\n" not in str(error.value)
 
 
 def test_episode_metrics_report_the_highest_tile():

@@ -159,6 +159,8 @@ def test_render_draws_walls_coins_and_agent(env):
         ({"horizon": 0}, "horizon must be an integer at least 1, got 0"),
         ({"size": 3}, "size must be an integer at least 4, got 3"),
         ({"num_coins": 2.5}, "got 2.5"),
+        ({"horizon": True}, "collect: horizon must be an integer at least 1, got True"),
+        ({"size": "8"}, "collect: size must be an integer at least 4, got '8'"),
         ({"coins": 3}, "bad parameters for environment 'collect'"),
     ],
 )

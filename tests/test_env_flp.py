@@ -180,6 +180,8 @@ def test_render_draws_clients_facilities_and_the_radius():
         ("flp", {"num_clients": 5, "num_facilities": 6}, "num_facilities must be an integer in 1..5, got 6"),
         ("flp-mean", {"num_clients": 0}, "num_clients must be an integer at least 1, got 0"),
         ("flp", {"num_facilities": 2.0}, "got 2.0"),
+        ("flp-mean", {"num_facilities": 0}, "flp-mean: num_facilities must be an integer in 1..20, got 0"),
+        ("flp", {"num_clients": "20"}, "flp: num_clients must be an integer at least 1, got '20'"),
         ("flp", {"objective": "mean"}, "bad parameters for environment 'flp'"),
     ],
 )

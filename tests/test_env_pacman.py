@@ -197,14 +197,26 @@ def test_render_both_variants(full_env, po_env, initial):
     assert not (full == outline).all(-1).any() and (partial == outline).all(-1).sum() > 100
 
 
-def test_bad_parameters_are_one_line_errors():
-    for horizon in (0, -1):
-        with pytest.raises(ValueError, match="horizon"):
-            envs.make("pacman", horizon=horizon)
-    for size in (4, 0, -3):
-        with pytest.raises(ValueError, match=f"window_size must be a positive odd integer, got {size}"):
-            envs.make("pacman-po", window_size=size)
-    with pytest.raises(ValueError, match="pacman-po only"):
-        envs.make("pacman", window_size=5)
-    with pytest.raises(ValueError, match="bad parameters"):
-        envs.make("pacman-po", partial=False)
+@pytest.mark.parametrize(
+    "name, args, message",
+    [
+        ("pacman", {"horizon": 0}, "pacman: horizon must be an integer at least 1, got 0"),
+        ("pacman", {"horizon": -1}, "pacman: horizon must be an integer at least 1, got -1"),
+        ("pacman-po", {"horizon": 1.5}, "pacman-po: horizon must be an integer at least 1, got 1.5"),
+        ("pacman-po", {"window_size": 4}, "pacman-po: window_size must be an odd integer at least 1, got 4"),
+        ("pacman-po", {"window_size": 0}, "pacman-po: window_size must be an odd integer at least 1, got 0"),
+        ("pacman-po", {"window_size": -3}, "pacman-po: window_size must be an odd integer at least 1, got -3"),
+        ("pacman-po", {"window_size": "5"}, "pacman-po: window_size must be an odd integer at least 1, got '5'"),
+        ("pacman", {"window_size": 5}, "pacman: window_size must be left out (it applies to pacman-po only), got 5"),
+        ("pacman-po", {"partial": False}, "bad parameters"),
+    ],
+)
+def test_bad_parameters_are_one_line_errors(name, args, message):
+    with pytest.raises(ValueError) as error:
+        envs.make(name, **args)
+    assert message in str(error.value) and "\n" not in str(error.value)
+
+
+def test_partial_must_be_a_bool():
+    with pytest.raises(ValueError, match="^pacman: partial must be true or false, got 'yes'$"):
+        pacman.make(partial="yes")

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import envs
+from envs.base import play_policy, require, require_bool, require_choice, require_int, require_path
 
 # Short episodes where the horizon is a parameter: these tests are about the protocol, not the game.
 SMALL = {"2048": {"horizon": 8}, "pacman": {"horizon": 8}, "pacman-po": {"horizon": 8}, "sokoban": {"num_levels": 20}}
@@ -66,3 +67,94 @@ def test_every_environment_renders_and_has_references(name):
     references = env.references(states, np.zeros(BATCH, np.float32))
     assert isinstance(references, dict) and REFERENCE_KEYS[name] <= set(references), references
     assert all(isinstance(value, float) and np.isfinite(value) for value in references.values()), references
+
+
+# ---------------------------------------------------------------- the shared reference player
+
+
+def _counting_step(state, action):
+    """A tiny deterministic environment: the state counts steps and knows when it ends; the reward is the action."""
+    count, done_at = state
+    count = count + 1
+    return (count, done_at), 100 * count, action.astype(jnp.float32), count >= done_at
+
+
+def _start(done_at):
+    return jnp.int32(0), jnp.int32(done_at)
+
+
+def test_play_policy_ignores_rewards_after_done_and_keeps_the_final_state():
+    # rewards 1, 10, 100, ... (10^t): the total shows which steps counted
+    playout = play_policy(_counting_step, lambda state, observation, t: 10**t, _start(3), horizon=5)
+    assert float(playout.total_reward) == 1 + 10 + 100  # not 11111: the steps after done pay nothing
+    assert int(playout.length) == 3
+    assert int(playout.final_state[0]) == 3  # steps 4 and 5 were taken but the state stopped where it ended
+
+
+def test_play_policy_without_done_plays_to_the_horizon():
+    playout = play_policy(_counting_step, lambda state, observation, t: 10**t, _start(99), horizon=4)
+    assert float(playout.total_reward) == 1111 and int(playout.length) == 4 and int(playout.final_state[0]) == 4
+
+
+def test_play_policy_passes_the_last_observation_and_the_step_index():
+    def policy(state, observation, t):
+        return observation + t  # 7 + 0, then 100 + 1, then 200 + 2
+
+    playout = play_policy(_counting_step, policy, _start(99), horizon=3, initial_observation=jnp.int32(7))
+    assert float(playout.total_reward) == 7 + 101 + 202
+
+    def state_only(state, observation, t):
+        assert observation is None  # no initial observation: the policy reads the state only
+        return state[0] + t
+
+    assert float(play_policy(_counting_step, state_only, _start(99), horizon=3).total_reward) == 0 + 2 + 4
+
+
+def test_play_policy_is_jittable_and_vmappable():
+    def play(done_at):
+        return play_policy(_counting_step, lambda state, observation, t: 10**t, _start(done_at), horizon=4)
+
+    playouts = jax.jit(jax.vmap(play))(jnp.array([1, 2, 3, 4, 9]))
+    np.testing.assert_array_equal(playouts.total_reward, [1, 11, 111, 1111, 1111])
+    np.testing.assert_array_equal(playouts.length, [1, 2, 3, 4, 4])
+    np.testing.assert_array_equal(playouts.final_state[0], [1, 2, 3, 4, 4])
+
+
+# ---------------------------------------------------------------- checking parameters
+
+
+@pytest.mark.parametrize(
+    "check, message",
+    [
+        (lambda: require_int("e", "n", 0, 1), "e: n must be an integer at least 1, got 0"),
+        (lambda: require_int("e", "n", 9, 1, 8), "e: n must be an integer in 1..8, got 9"),
+        (lambda: require_int("e", "n", True, 0), "e: n must be an integer at least 0, got True"),
+        (lambda: require_int("e", "n", 3.0, 1), "e: n must be an integer at least 1, got 3.0"),
+        (lambda: require_int("e", "n", 4, 1, odd=True), "e: n must be an odd integer at least 1, got 4"),
+        (lambda: require_int("e", "n", 5, 1, 3, odd=True), "e: n must be an odd integer in 1..3, got 5"),
+        (lambda: require_bool("e", "b", "true"), "e: b must be true or false, got 'true'"),
+        (lambda: require_bool("e", "b", 0), "e: b must be true or false, got 0"),
+        (lambda: require_choice("e", "c", "z", ("x", "y")), "e: c must be one of x, y, got 'z'"),
+        (lambda: require_choice("e", "c", True, (1, 2)), "e: c must be one of 1, 2, got True"),
+        (lambda: require_choice("e", "c", ["x"], ("x", "y")), "e: c must be one of x, y, got ['x']"),
+        (lambda: require_path("e", "p", ""), "e: p must be a file or directory path, got ''"),
+        (lambda: require_path("e", "p", None), "e: p must be a file or directory path, got None"),
+        (lambda: require(False, "e", "p", "a\nb", "fine"), "e: p must be fine, got 'a\\nb'"),
+    ],
+)
+def test_parameter_checks_raise_one_line_naming_environment_parameter_and_value(check, message):
+    with pytest.raises(ValueError) as error:
+        check()
+    assert str(error.value) == message
+
+
+def test_parameter_checks_pass_good_values_and_keep_odd_values_on_one_short_line():
+    require_int("e", "n", 1, 1)
+    require_int("e", "n", 8, 1, 8)
+    require_int("e", "n", 3, 1, odd=True)
+    require_bool("e", "b", False)
+    require_choice("e", "c", "y", ("x", "y"))
+    require_path("e", "p", "levels/")
+    with pytest.raises(ValueError) as error:
+        require_int("e", "n", np.zeros((20, 20)), 1)  # its repr spans 20 lines
+    assert "\n" not in str(error.value) and len(str(error.value)) < 150

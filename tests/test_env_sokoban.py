@@ -263,6 +263,8 @@ def test_spec_does_not_depend_on_the_levels(env, tmp_path):
         ({"pull_rounds": "many"}, "pull_rounds must be an integer at least 1, got 'many'"),
         ({"levels": "/nowhere/boxoban"}, "sokoban: levels path /nowhere/boxoban does not exist"),
         ({"levels": 3}, "levels must be a file or directory path, got 3"),
+        ({"levels": ""}, "sokoban: levels must be a file or directory path, got ''"),
+        ({"horizon": 50.0}, "sokoban: horizon must be an integer at least 1, got 50.0"),
         ({"size": 3}, "bad parameters for environment 'sokoban'"),
     ],
 )

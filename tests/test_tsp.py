@@ -92,9 +92,23 @@ def test_reference_scale_of_uniform_tsp10():
     assert nearest > optimal
 
 
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        ({"num_cities": 1}, "tsp: num_cities must be an integer at least 3, got 1"),
+        ({"num_cities": 10.0}, "tsp: num_cities must be an integer at least 3, got 10.0"),
+        ({"num_cities": True}, "tsp: num_cities must be an integer at least 3, got True"),
+        ({"mask_placed": "false"}, "tsp: mask_placed must be true or false, got 'false'"),
+        ({"mask_placed": 1}, "tsp: mask_placed must be true or false, got 1"),
+    ],
+)
+def test_bad_parameter_values_are_one_line_errors(args, message):
+    with pytest.raises(ValueError) as error:
+        envs.make("tsp", **args)
+    assert str(error.value) == message
+
+
 def test_bad_parameters_are_one_line_errors():
-    with pytest.raises(ValueError, match="num_cities"):
-        envs.make("tsp", num_cities=1)
     with pytest.raises(ValueError, match="unknown environment 'chess'"):
         envs.make("chess")
     with pytest.raises(ValueError, match="bad parameters"):

@@ -24,7 +24,7 @@ def _run(argv, capsys):
         (["--planner", "alphabeta"], "'alphabeta'"),
         (["--sigma", "0"], "sigma must be positive, got 0.0"),
         (["--perturbation-rank", "-1"], "perturbation_rank must be a non-negative integer, got -1"),
-        (["--env-arg", "num_cities=1"], "num_cities must be at least 3, got 1"),
+        (["--env-arg", "num_cities=1"], "tsp: num_cities must be an integer at least 3, got 1"),
         (["--env-arg", "cities=3"], "bad parameters for environment 'tsp'"),
         (["--preset", "huge"], "unknown preset 'huge'"),
         (["--decoder-inputs", "state,mood"], "unknown decoder input 'mood'"),
