@@ -11,7 +11,7 @@ import pytest
 from envs import boxoban, sokoban, sokoban_generator
 
 # The real Boxoban files live beside the repository (never copied into it).
-BOXOBAN = Path(__file__).parents[2] / "shared" / "boxoban"
+BOXOBAN = Path(__file__).parents[3] / "shared" / "boxoban"
 
 LEVEL = """\
 ##########
