@@ -12,7 +12,7 @@ import pytest
 
 from pizero_ray.cli import main
 from pizero_ray.config import build_config
-from pizero_ray.storage import checkpoints, run_dir
+from pizero_ray.storage import checkpoints, run_dir, runs
 from pizero_ray.trainer import driver
 
 ITERATIONS = 12
@@ -160,11 +160,13 @@ def _copy_of_reference(tmp_path, reference) -> Path:
 
 def _templates():
     """The run's initial parameters and optimiser state: what a resume restores into."""
+    import numpy as np
+
     import envs
 
     env = envs.make(CONFIG.env, **CONFIG.env_kwargs())
-    theta, opt_state, _, _ = driver._initial_state(CONFIG, env)
-    return theta, opt_state
+    state, _, _ = runs.initial_state(CONFIG, env)
+    return np.asarray(state.theta), state.opt_state
 
 
 def _dropped(path):
