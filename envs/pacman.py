@@ -54,7 +54,7 @@ several times more while keeping episodes cheap on CPU.
 Beware: the ghosts' random choices matter only at ties, so given the same
 actions different reset keys give nearly the same game (one score for 200
 keys under one fixed action sequence). A deterministic agent plays the same
-episode every time: extra ``trials`` add little, and evaluation scores have
+episode every time: extra episodes per member add little, and evaluation scores have
 almost no spread.
 
 Training presets for both variants (a smaller population; Jumanji's full

@@ -64,7 +64,9 @@ class Config:
     action_noise: float = setting(1.0, flag="--action-noise", help="Gumbel scale when action selection is sample")
     # evolution strategies
     population: int = setting(256, flag="--population", help="antithetic pairs per iteration (2x members)")
-    trials: int = setting(1, flag="--trials", help="episodes per member, averaged")
+    # Episodes each member plays per iteration, its score their mean. Not the paper's "Trials: 5": those are
+    # independent training runs (seeds), which the experiments repeat.
+    episodes_per_member: int = setting(1, flag="--episodes-per-member", help="episodes per member, averaged")
     sigma: float = setting(0.1, flag="--sigma", help="noise scale")
     perturbation_rank: int = setting(
         0, flag="--perturbation-rank",
@@ -90,7 +92,7 @@ class Config:
 
         need_choice("env")
         for name in ("hidden_size", "latent_size", "memory_size", "num_abstract_actions",
-                     "population", "trials", "chunk_size"):
+                     "population", "episodes_per_member", "chunk_size"):
             value = getattr(self, name)
             need(isinstance(value, int) and value > 0, f"{name} must be a positive integer, got {value!r}")
         need_choice("planner")
@@ -141,11 +143,13 @@ class Config:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "Config":
-        known = {f.name for f in dataclasses.fields(cls)}
+        known = {f.name for f in dataclasses.fields(cls)} | {"trials"}
         unknown = sorted(set(data) - known)
         if unknown:
             raise ConfigError(f"unknown config keys: {', '.join(unknown)}")
         data = dict(data)
+        if "trials" in data and "episodes_per_member" not in data:  # run dirs written before the rename
+            data["episodes_per_member"] = data.pop("trials")
         if "env_args" in data:
             data["env_args"] = tuple(sorted(dict(data["env_args"]).items()))
         if "decoder_inputs" in data:

@@ -47,9 +47,10 @@ OLD_DEFAULTS = {
     "env_args": {}, "fitness_shaping": "centered_ranks", "hidden_size": 64, "latent_size": 64,
     "learning_rate": 0.01, "memory_size": 64, "num_abstract_actions": 4, "num_simulations": 10,
     "pb_c_base": 19652.0, "pb_c_init": 1.25, "perturbation_rank": 0, "planner": "muzero", "population": 256,
-    "root_noise": 0.0, "seed": 0, "sigma": 0.1, "trials": 1, "weight_decay": 0.0,
+    "root_noise": 0.0, "seed": 0, "sigma": 0.1, "episodes_per_member": 1, "weight_decay": 0.0,
 }
-PAPER = {"chance_outcomes": 3, "chunk_size": 40, "learning_rate": 0.001, "population": 1000, "trials": 5}
+# The paper preset played 5 episodes per member until issue 14: the paper's "Trials: 5" are 5 runs.
+PAPER = {"chance_outcomes": 3, "chunk_size": 40, "learning_rate": 0.001, "population": 1000}
 TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "num_abstract_actions": 2,
         "num_simulations": 2, "population": 4}
 
@@ -65,13 +66,13 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
     ("default", {"env": "sokoban"}, {"env": "sokoban", "population": 64, "chunk_size": 16}),
     ("paper", {"env": "sokoban"}, {**PAPER, "env": "sokoban"}),
     ("tiny", {"env": "sokoban"}, {**TINY, "env": "sokoban"}),
-    ("default", {"env": "flp-mean"}, {"env": "flp-mean", "trials": 3}),
+    ("default", {"env": "flp-mean"}, {"env": "flp-mean", "episodes_per_member": 3}),
     ("paper", {"env": "collect"}, {**PAPER, "env": "collect"}),
     # explicit values beat the environment's preset; --env-arg replaces its env_args as a whole
     ("paper", {"env": "2048", "env_args": {"tile_encoding": "one_hot"}},
      {**PAPER, "env": "2048", "env_args": {"tile_encoding": "one_hot"}}),
     ("default", {"env": "sokoban", "population": 48}, {"env": "sokoban", "population": 48, "chunk_size": 16}),
-    ("default", {"env": "flp", "trials": 2}, {"env": "flp", "trials": 2}),
+    ("default", {"env": "flp", "episodes_per_member": 2}, {"env": "flp", "episodes_per_member": 2}),
     ("paper", {"env": "pacman", "population": 600, "seed": 7},
      {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}, "population": 600, "seed": 7}),
 ])
@@ -144,3 +145,12 @@ def test_run_options_validate_themselves(values, message):
     with pytest.raises(ConfigError) as error:
         RunOptions.create(iterations=1, **values)
     assert str(error.value) == message
+
+
+def test_a_run_dir_written_before_the_rename_still_reads():
+    from pizero_ray.config import Config
+
+    old = json.loads(build_config("default", env="flp").to_json())
+    old["trials"] = old.pop("episodes_per_member")
+    assert Config.from_dict(old).episodes_per_member == 3
+    assert build_config("paper").episodes_per_member == 1  # the paper's "Trials: 5" are five runs, not episodes

@@ -67,7 +67,7 @@ def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
     for the chunk; the episodes each pair plays still come from (iteration
     seed, pair index) alone.
     """
-    agent, sigma, episodes = make_agent(config, env.spec), config.sigma, config.trials
+    agent, sigma, episodes = make_agent(config, env.spec), config.sigma, config.episodes_per_member
 
     def member_score(theta: jax.Array, episode_key: jax.Array) -> jax.Array:
         return jnp.mean(run_episodes(agent, layout.unravel(theta), env, episode_key, episodes))

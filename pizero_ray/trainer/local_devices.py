@@ -169,7 +169,7 @@ class ChunkEvaluator:
         env = envs.make(config.env, **config.env_kwargs())
         theta, layout = population.flat_params(config, env)
         self.parameters = layout.size
-        self.agent_steps_per_pair = 2 * config.trials * env.spec.horizon
+        self.agent_steps_per_pair = 2 * config.episodes_per_member * env.spec.horizon
         self.devices = jax.local_devices()[:max_devices]
         evaluate = population.make_pair_evaluator(config, env, layout)
         self._parts = es.gradient_parts(config, layout.perturbation)

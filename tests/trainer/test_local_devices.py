@@ -38,7 +38,7 @@ def chunks():
 def test_the_test_process_has_two_cpu_devices(chunks):
     assert len(jax.local_devices()) == 2  # tests/conftest.py, as a 2-core worker
     assert chunks.num_devices == 2 and chunks.devices[0] != chunks.devices[1]
-    assert chunks.agent_steps_per_pair == 2 * CONFIG.trials * 10  # TSP10
+    assert chunks.agent_steps_per_pair == 2 * CONFIG.episodes_per_member * 10  # TSP10
 
 
 def test_chunks_dealt_over_both_devices_score_as_on_one(chunks, theta_and_reference):
