@@ -69,8 +69,9 @@ def test_low_rank_members_play_exactly_theta_plus_the_expanded_noise(tsp_env, en
     theta, layout = population.flat_params(config, env)
     scores = pair_scorer(config, env)[1](9)
     key = es.iteration_key(np.uint32(9))
+    agent = make_agent(config, env.spec)
     member_score = jax.jit(lambda member, episode_key: jnp.mean(
-        episodes.run_episodes(make_agent(config, env.spec), layout.unravel(member), env, episode_key, config.episodes_per_member)))
+        episodes.run_episodes(agent, layout.unravel(member), env, episode_key, config.episodes_per_member)))
     expected = []
     for i in range(3):
         z = es.expand_noise(es.pair_noise(key, i, layout.perturbation.noise_size), layout.perturbation)
