@@ -210,7 +210,7 @@ def _train_config(args):
     return config
 
 
-def _run_options(args, iterations: int):
+def _run_options(args, iterations: int | None):
     """The run options given (RunOptions validates them: a bad one is a one-line ConfigError)."""
     from pizero_ray.trainer.options import RunOptions
 
@@ -237,7 +237,8 @@ def _progress_callbacks(options, no_progress: bool):
 
         def on_iteration(row):
             extra = f" eval {row['eval_mean_score']:.4f}" if "eval_mean_score" in row else ""
-            print(f"iteration {row['iteration']}/{options.iterations} mean score {row['mean_score']:.4f}"
+            total = f"/{options.iterations}" if options.iterations else ""
+            print(f"iteration {row['iteration']}{total} mean score {row['mean_score']:.4f}"
                   f"{extra} ({row['iteration_time_s']:.2f} s)", file=sys.stderr, flush=True)
 
         return on_start, on_iteration, lambda: None
@@ -284,10 +285,15 @@ def _run_training(run_path: Path, config, options, no_progress: bool) -> int:
     finally:
         close()
     print(json.dumps({"run_dir": str(run_path), **result}))
+    target = " ".join(f"--{name} {value:g}" for name, value in
+                      (("iterations", options.iterations), ("minutes", options.minutes)) if value is not None)
     if result["stopped_by"]:
         print(f"pizero: stopped by {result['stopped_by']} after iteration {result['iteration']}, checkpoint saved; "
-              f"continue with: pizero resume {run_path} --iterations {options.iterations}", file=sys.stderr)
+              f"continue with: pizero resume {run_path} {target}", file=sys.stderr)
         return 128 + int(getattr(signal, result["stopped_by"]))
+    if result["out_of_time"]:
+        print(f"pizero: the {options.minutes:g}-minute budget ran out after iteration {result['iteration']}, "
+              f"checkpoint saved; give more with: pizero resume {run_path} --minutes M", file=sys.stderr)
     return 0
 
 
@@ -298,7 +304,9 @@ def _cmd_train(args) -> int:
         raise UsageError(f"run dir {run_path} already holds a run; continue it with: pizero resume {run_path}")
     if run_path.exists() and not run_path.is_dir():
         raise UsageError(f"run dir {run_path} exists and is not a directory")
-    options = _run_options(args, args.iterations or DEFAULT_ITERATIONS)
+    # With a wall-clock budget and no iteration target, the budget alone says when to stop.
+    iterations = args.iterations or (None if args.minutes else DEFAULT_ITERATIONS)
+    options = _run_options(args, iterations)
     rundir.write_config(run_path, config)  # the last step before training: all input was valid
     return _run_training(run_path, config, options, args.no_progress)
 
@@ -314,6 +322,9 @@ def _cmd_chaos(args) -> int:
     for name in ("clean", "chaos"):
         if (base / name / rundir.CONFIG_FILE).exists():
             raise UsageError(f"{base / name} already holds a run; choose another --run-dir")
+    if args.minutes is not None:
+        raise UsageError(f"chaos compares two runs of the same iterations; --minutes {args.minutes:g} would cut "
+                         "them at different points")
     options = _run_options(args, args.iterations or 10)
     # Kills fall on random (iteration, chunk) pairs: right after that chunk is handed out,
     # the worker holding it is SIGKILLed (on this machine; a remote worker's actor is killed).
@@ -342,8 +353,9 @@ def _cmd_chaos(args) -> int:
 def _cmd_resume(args) -> int:
     run_path = _existing_run(args.run_dir)
     config = rundir.read_config(run_path)
-    if args.iterations is None:
-        raise UsageError("resume needs --iterations N, the total number of iterations to reach")
+    if args.iterations is None and args.minutes is None:
+        raise UsageError("resume needs --iterations N (the total number of iterations to reach), "
+                         "--minutes M (the run's total wall-clock budget) or both")
     options = dataclasses.replace(_run_options(args, args.iterations), restart=args.restart)
     return _run_training(run_path, config, options, args.no_progress)
 

@@ -82,6 +82,7 @@ class _Run:
         self.log = rundir.MetricsLog(run_path)
         self.wall_offset = self.metrics[-1]["wall_time_s"] if self.metrics else 0.0
         self.started = time.time()
+        self.evaluating_s = 0.0  # the learning curve's evaluations are measurement, not training time
 
     def save(self) -> None:
         runs.save(self.writer, self.config, self.state)
@@ -89,7 +90,29 @@ class _Run:
     def evaluate(self) -> float:
         import jax
 
-        return float(self.evaluator(self.state.theta, jax.random.PRNGKey(EVAL_SEED)).mean())
+        started = time.time()
+        score = float(self.evaluator(self.state.theta, jax.random.PRNGKey(EVAL_SEED)).mean())
+        self.evaluating_s += time.time() - started
+        return score
+
+    def wall_time_s(self) -> float:
+        """Training wall-clock of the whole run (this session's after what the metrics held), without evaluations.
+
+        Worker start-up, compiles, checkpoints and stragglers count: they are
+        what training costs. The learning curve's evaluations do not (a
+        planner's cost more and would tilt an equal-time comparison).
+        """
+        return self.wall_offset + time.time() - self.started - self.evaluating_s
+
+    def out_of_time(self) -> bool:
+        return self.options.minutes is not None and self.wall_time_s() >= 60.0 * self.options.minutes
+
+    def reached_iterations(self) -> bool:
+        return self.options.iterations is not None and self.state.iteration >= self.options.iterations
+
+    def done(self) -> bool:
+        """The target is reached: the iterations asked for, or the wall-clock budget."""
+        return self.reached_iterations() or self.out_of_time()
 
     def begin(self) -> None:
         if self.state.iteration == 0:
@@ -117,7 +140,7 @@ class _Run:
         now = time.time()
         row = {"iteration": state.iteration, **_score_stats(stats), "requeued_chunks": result.requeued_chunks,
                "gradient_parts_on_driver": parts_here, "iteration_time_s": now - started,
-               "update_time_s": now - scored, "wall_time_s": self.wall_offset + now - self.started,
+               "update_time_s": now - scored, "wall_time_s": self.wall_time_s(),
                "gradient_norm": stats.gradient_norm, "update_norm": stats.update_norm,
                "parameter_norm": stats.parameter_norm, "workers": self.pool.live_workers,
                "worker_nodes": [node[:12] for node in result.worker_nodes]}
@@ -126,9 +149,9 @@ class _Run:
         return row
 
     def record(self, row: dict) -> None:
-        """Evaluates if due, writes the row, checkpoints if due."""
+        """Evaluates if due (and after the last iteration), writes the row, checkpoints if due."""
         iteration, options = row["iteration"], self.options
-        if self.evaluator is not None and (iteration % options.eval_every == 0 or iteration == options.iterations):
+        if self.evaluator is not None and (iteration % options.eval_every == 0 or self.done()):
             row["eval_mean_score"] = self.evaluate()
         self.log.write(row)
         if options.checkpoint_every > 0 and iteration % options.checkpoint_every == 0:
@@ -154,9 +177,12 @@ def train(
 ) -> dict:
     """Trains until ``options.iterations`` iterations are done, resuming from the newest good checkpoint.
 
-    Returns {"iteration", "parameter_hash", "stopped_by", "workers_killed"}:
-    ``stopped_by`` names the signal that interrupted training (after a
-    checkpoint was saved), or None.
+    With ``options.minutes`` it also stops, after the iteration under way,
+    once the run's training wall-clock (across resumes) reaches the budget.
+    Returns {"iteration", "parameter_hash", "stopped_by", "out_of_time",
+    "workers_killed"}: ``stopped_by`` names the signal that interrupted
+    training (after a checkpoint was saved), or None; ``out_of_time`` says
+    the wall-clock budget ended it.
     """
     from pizero_ray.trainer import ray_setup
 
@@ -170,7 +196,7 @@ def train(
     try:
         with stop:
             run.begin()
-            while run.state.iteration < options.iterations and not stop():
+            while not run.done() and not stop():
                 try:
                     row = run.iterate(stop)
                 except Interrupted:
@@ -183,4 +209,5 @@ def train(
         run.close()
     stopped_by = signal.Signals(stop.signal).name if stop.signal is not None else None
     return {"iteration": run.state.iteration, "parameter_hash": runs.parameter_hash(np.asarray(run.state.theta)),
-            "stopped_by": stopped_by, "workers_killed": run.pool.kills}
+            "stopped_by": stopped_by, "out_of_time": stop.signal is None and not run.reached_iterations(),
+            "workers_killed": run.pool.kills}

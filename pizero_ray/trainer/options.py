@@ -74,7 +74,12 @@ class PoolOptions:
 class RunOptions:
     """A run: how far, on which cluster, checkpoints, evaluation; and its worker pool's options."""
 
-    iterations: int = setting(flag="--iterations", minimum=1, help="total iterations to reach")
+    iterations: int | None = setting(
+        None, flag="--iterations", minimum=1, help="total iterations to reach (None: as many as --minutes allows)")
+    minutes: float | None = setting(
+        None, flag="--minutes",
+        help="stop, with a checkpoint, once the run has trained this many wall-clock minutes in all "
+             "(its metrics' wall_time_s, which carries on across resumes)")
     pool: PoolOptions = field(default_factory=PoolOptions)
     address: str | None = setting(
         None, flag="--address", help="Ray cluster address (default: RAY_ADDRESS, else a local instance)")
@@ -92,6 +97,10 @@ class RunOptions:
     def validate(self) -> "RunOptions":
         """Raises ConfigError, one line naming the value, on an option out of range (the pool's too)."""
         check_minimums(self, ConfigError)
+        if self.iterations is None and self.minutes is None:
+            raise ConfigError("give --iterations N (the total to reach), --minutes M (a wall-clock budget) or both")
+        if self.minutes is not None and not self.minutes > 0:
+            raise ConfigError(f"--minutes must be positive, got {self.minutes}")
         self.pool.validate()
         return self
 

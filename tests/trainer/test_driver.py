@@ -114,3 +114,39 @@ def test_gradient_parts_from_workers_equal_the_update_in_one_process(ray_session
     assert runs.parameter_hash(np.asarray(state.theta)) == trained["parameter_hash"]
     rows = run_dir.read_metrics(tmp_path / "run")
     assert [row["gradient_parts_on_driver"] for row in rows[1:]] == [0, 0]  # every part came from a worker
+
+
+def test_a_wall_clock_budget_stops_with_a_checkpoint_and_resume_raises_it(ray_session, tmp_path, compile_cache_dir):
+    config = build_config("tiny")
+    path = tmp_path / "budget"
+    run_dir.write_config(path, config)
+
+    def train(seconds):
+        options = driver.RunOptions.create(minutes=seconds / 60, workers=1, compile_cache=compile_cache_dir,
+                                           checkpoint_every=0, eval_every=1000, eval_episodes=4)
+        return driver.train(path, config, options), run_dir.read_metrics(path)
+
+    first, rows = train(3.0)
+    assert first["out_of_time"] and first["stopped_by"] is None and first["iteration"] >= 1
+    assert rows[-1]["iteration"] == first["iteration"] and "eval_mean_score" in rows[-1]  # the last one is evaluated
+    assert rows[-1]["wall_time_s"] >= 3.0 > rows[-2]["wall_time_s"]  # stopped by the first iteration past it
+    assert runs.load_run(path).iteration == first["iteration"]  # checkpointed where it stopped
+
+    spent = rows[-1]["wall_time_s"]
+    again, _ = train(spent)  # the run's budget is spent: nothing more
+    assert again["iteration"] == first["iteration"] and again["out_of_time"]
+    more, later = train(spent + 4.0)  # four more seconds in all
+    assert more["iteration"] > first["iteration"] and more["out_of_time"]
+    assert later[-1]["wall_time_s"] >= spent + 4.0 > later[-2]["wall_time_s"]
+    assert [row["iteration"] for row in later] == list(range(more["iteration"] + 1))
+
+
+def test_a_run_needs_a_target_and_a_positive_budget(tmp_path, capsys):
+    path = tmp_path / "run"
+    run_dir.write_config(path, build_config("tiny"))
+    assert main(["resume", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "--iterations N" in err and "--minutes M" in err
+    assert main(["train", "--run-dir", str(tmp_path / "x"), "--minutes", "0"]) == 2
+    assert "--minutes must be positive, got 0" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()  # nothing written
