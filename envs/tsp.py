@@ -9,6 +9,15 @@ With ``mask_placed`` (the default) cities already placed at positions < t are
 illegal, which turns the swap formulation into tour construction; without it
 any city may be swapped into position t, disturbing earlier positions.
 
+Each candidate city's action features (what the pointer decoder scores) are,
+with ``features="distances"`` (the default), its coordinates, the previous
+and the first city's, its distances to those two, the progress, its placed
+flag and whether a city is placed yet: the distance to the previous city
+hands the decoder the nearest-neighbour answer. ``features="paper"`` gives
+only each city's own coordinates and its placed flag, so that whatever the
+agent knows of distances it must work out (the paper's observation is the
+flat coordinates plus the timestep, which ``vector`` is in both modes).
+
 Also here: exact Held-Karp (n <= 12) and nearest-neighbour reference solvers in
 NumPy, used by evaluations to report the gap to optimal.
 """
@@ -21,10 +30,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, require_bool, require_int
+from envs.base import Environment, EnvSpec, Observation, require_bool, require_choice, require_int
 
 MAX_EXACT_CITIES = 12
-ACTION_FEATURE_SIZE = 11
+FEATURES = ("distances", "paper")
+ACTION_FEATURE_SIZES = {"distances": 11, "paper": 3}
 
 
 class TSPState(NamedTuple):
@@ -39,38 +49,48 @@ def tour_length(coordinates: jax.Array, tour: jax.Array) -> jax.Array:
     return jnp.sum(jnp.linalg.norm(ordered - jnp.roll(ordered, -1, axis=0), axis=-1))
 
 
-def make(num_cities: int = 10, mask_placed: bool = True) -> Environment:
+def distance_features(state: TSPState, placed: jax.Array) -> jax.Array:
+    """Per city [n, 11]: coordinates, the previous and first city's, distances to them, progress, placed, started."""
+    n = state.tour.shape[0]
+    has_prev = state.t > 0
+    prev = jnp.where(has_prev, state.coordinates[state.tour[jnp.maximum(state.t - 1, 0)]], 0.0)
+    first = jnp.where(has_prev, state.coordinates[state.tour[0]], 0.0)
+    to_prev = jnp.where(has_prev, jnp.linalg.norm(state.coordinates - prev, axis=-1), 0.0)
+    to_first = jnp.where(has_prev, jnp.linalg.norm(state.coordinates - first, axis=-1), 0.0)
+    progress = state.t.astype(jnp.float32) / n
+    return jnp.concatenate(
+        [
+            state.coordinates,
+            jnp.broadcast_to(prev, (n, 2)),
+            jnp.broadcast_to(first, (n, 2)),
+            to_prev[:, None],
+            to_first[:, None],
+            jnp.full((n, 1), progress),
+            placed[:, None].astype(jnp.float32),
+            jnp.full((n, 1), has_prev.astype(jnp.float32)),
+        ],
+        axis=-1,
+    )
+
+
+def make(num_cities: int = 10, mask_placed: bool = True, features: str = "distances") -> Environment:
     require_int("tsp", "num_cities", num_cities, 3)
     require_bool("tsp", "mask_placed", mask_placed)
+    require_choice("tsp", "features", features, FEATURES)
     n = num_cities
 
     def observe(state: TSPState) -> Observation:
         position_of = jnp.argsort(state.tour)  # city -> its position in the tour
         placed = position_of < state.t
-        has_prev = state.t > 0
-        prev = jnp.where(has_prev, state.coordinates[state.tour[jnp.maximum(state.t - 1, 0)]], 0.0)
-        first = jnp.where(has_prev, state.coordinates[state.tour[0]], 0.0)
-        to_prev = jnp.where(has_prev, jnp.linalg.norm(state.coordinates - prev, axis=-1), 0.0)
-        to_first = jnp.where(has_prev, jnp.linalg.norm(state.coordinates - first, axis=-1), 0.0)
-        progress = state.t.astype(jnp.float32) / n
-        features = jnp.concatenate(
-            [
-                state.coordinates,
-                jnp.broadcast_to(prev, (n, 2)),
-                jnp.broadcast_to(first, (n, 2)),
-                to_prev[:, None],
-                to_first[:, None],
-                jnp.full((n, 1), progress),
-                placed[:, None].astype(jnp.float32),
-                jnp.full((n, 1), has_prev.astype(jnp.float32)),
-            ],
-            axis=-1,
-        )
+        if features == "paper":
+            candidates = jnp.concatenate([state.coordinates, placed[:, None].astype(jnp.float32)], axis=-1)
+        else:
+            candidates = distance_features(state, placed)
         vector = jnp.concatenate(
             [state.coordinates[state.tour].reshape(-1), jax.nn.one_hot(state.t, n)]
         )
         mask = ~placed if mask_placed else jnp.ones((n,), dtype=bool)
-        return Observation(vector, features, mask)
+        return Observation(vector, candidates, mask)
 
     def reset(key: jax.Array) -> tuple[TSPState, Observation]:
         coordinates = jax.random.uniform(key, (n, 2), dtype=jnp.float32)
@@ -90,7 +110,7 @@ def make(num_cities: int = 10, mask_placed: bool = True) -> Environment:
         observation_size=3 * n,
         horizon=n,
         num_actions=n,
-        action_feature_size=ACTION_FEATURE_SIZE,
+        action_feature_size=ACTION_FEATURE_SIZES[features],
     )
     return Environment("tsp", spec, reset, step, render=render, references=references)
 

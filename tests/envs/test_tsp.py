@@ -100,6 +100,7 @@ def test_reference_scale_of_uniform_tsp10():
         ({"num_cities": True}, "tsp: num_cities must be an integer at least 3, got True"),
         ({"mask_placed": "false"}, "tsp: mask_placed must be true or false, got 'false'"),
         ({"mask_placed": 1}, "tsp: mask_placed must be true or false, got 1"),
+        ({"features": "nearest"}, "tsp: features must be one of distances, paper, got 'nearest'"),
     ],
 )
 def test_bad_parameter_values_are_one_line_errors(args, message):
@@ -115,3 +116,22 @@ def test_bad_parameters_are_one_line_errors():
         envs.make("tsp", cities=10)
     with pytest.raises(ValueError, match="Held-Karp"):
         tsp.optimal_tour_length(np.zeros((13, 2)))
+
+
+def test_paper_features_are_each_citys_coordinates_and_placed_flag_only(tsp_env):
+    env = envs.make("tsp", features="paper")
+    assert env.spec._replace(action_feature_size=0) == tsp_env.spec._replace(action_feature_size=0)
+    assert env.spec.action_feature_size == 3
+    key = jax.random.PRNGKey(4)
+    state, obs = env.reset(key)
+    rich_state, rich = tsp_env.reset(key)
+    np.testing.assert_array_equal(np.asarray(obs.vector), np.asarray(rich.vector))  # flat coordinates + timestep
+    np.testing.assert_array_equal(np.asarray(obs.action_features[:, :2]), np.asarray(state.coordinates))
+    assert not np.asarray(obs.action_features[:, 2]).any()
+    for city in (6, 2):
+        state, obs, reward, done = env.step(state, jnp.int32(city))
+        rich_state, rich, rich_reward, _ = tsp_env.step(rich_state, jnp.int32(city))
+        assert float(reward) == float(rich_reward)  # the same game
+    placed = np.asarray(obs.action_features[:, 2])
+    assert list(np.flatnonzero(placed)) == [2, 6] and list(np.flatnonzero(~np.asarray(obs.action_mask))) == [2, 6]
+    np.testing.assert_array_equal(np.asarray(obs.action_features[:, 2]), np.asarray(rich.action_features[:, 9]))
