@@ -360,15 +360,20 @@ def _cmd_resume(args) -> int:
     return _run_training(run_path, config, options, args.no_progress)
 
 
+def _print_report(result: dict, as_json: bool, key_width: int) -> None:
+    """One JSON object, or one aligned ``key: value`` line per entry."""
+    if as_json:
+        print(json.dumps(result))
+        return
+    for key, value in result.items():
+        print(f"{key:>{key_width}}: {value}")
+
+
 def _cmd_eval(args) -> int:
     from pizero_ray.cli.evaluate import evaluate_run
 
     result = evaluate_run(_existing_run(args.run_dir), args.episodes, args.seed, dict(args.env_arg))
-    if args.json:
-        print(json.dumps(result))
-    else:
-        for key, value in result.items():
-            print(f"{key:>30}: {value}")
+    _print_report(result, args.json, key_width=30)
     return 0
 
 
@@ -386,11 +391,7 @@ def _cmd_inspect(args) -> int:
         "checkpoints": checkpoints.checkpoint_steps(run_path),
         "metrics_rows": sum(1 for row in rundir.read_metrics(run_path) if row["iteration"] > 0),
     }
-    if args.json:
-        print(json.dumps(result))
-    else:
-        for key, value in result.items():
-            print(f"{key:>16}: {value}")
+    _print_report(result, args.json, key_width=16)
     return 0
 
 
