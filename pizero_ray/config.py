@@ -12,9 +12,11 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from pizero_ray.presets import PRESETS, env_preset
+from pizero_ray.presets import METHOD_PRESETS, PRESETS, env_preset
 from pizero_ray.settings import lookup, setting
 
+METHODS = ("pizero", "es", "alphazero", "muzero")
+GRADIENT_METHODS = ("alphazero", "muzero")  # trained by gradients on self-play, in one process (no Ray)
 PLANNERS = ("muzero", "gumbel", "none")
 DECODERS = ("pointer", "flat")
 DECODER_INPUTS = ("state", "action", "visits", "value")
@@ -36,6 +38,10 @@ def _env_names() -> tuple[str, ...]:
 class Config:
     """Each setting's default, flag, help and choices are declared here once (pizero_ray.settings)."""
 
+    method: str = setting(
+        "pizero", flag="--method", choices=METHODS,
+        help="pizero: PiZero by ES; es: the same agent without a planner (--planner none); alphazero: MCTS over "
+             "the true simulator, trained by gradients on self-play; muzero: MCTS over a learned model, likewise")
     # environment
     env: str = setting("tsp", flag="--env", choices=_env_names, help="the environment")
     env_args: tuple[tuple[str, Any], ...] = setting(
@@ -79,6 +85,17 @@ class Config:
                               help="pairs per unit of work (divides the population); fixed so results never "
                                    "depend on the workers")
     seed: int = setting(0, flag="--seed", help="the run's seed")
+    # gradient-trained baselines (alphazero, muzero); they share the agent's sizes, --simulations, --planner
+    # (muzero: PUCT, or gumbel), --root-noise, --lr and --weight-decay
+    selfplay_episodes: int = setting(32, flag="--selfplay-episodes",
+                                     help="alphazero/muzero: self-play episodes per iteration")
+    updates_per_iteration: int = setting(8, flag="--updates-per-iteration",
+                                         help="alphazero/muzero: Adam steps per iteration")
+    batch_size: int = setting(128, flag="--batch-size", help="alphazero/muzero: positions per Adam step")
+    replay_size: int = setting(256, flag="--replay-size", help="alphazero/muzero: episodes the replay buffer holds")
+    unroll_steps: int = setting(5, flag="--unroll-steps", help="muzero: model steps unrolled in the planning loss")
+    action_grid: int = setting(16, flag="--action-grid",
+                               help="alphazero/muzero on continuous actions (flp): grid points per action dimension")
 
     def validate(self) -> "Config":
         def need(condition: bool, message: str) -> None:
@@ -90,6 +107,7 @@ class Config:
             value, allowed = getattr(self, name), lookup(Config, name).allowed
             need(value in allowed, f"unknown {name.replace('_', ' ')} {value!r} (choose from {', '.join(allowed)})")
 
+        need_choice("method")
         need_choice("env")
         for name in ("hidden_size", "latent_size", "memory_size", "num_abstract_actions",
                      "population", "episodes_per_member", "chunk_size"):
@@ -122,7 +140,33 @@ class Config:
         need(self.population % self.chunk_size == 0,
              f"population {self.population} is not a multiple of chunk_size {self.chunk_size}")
         need(0 <= self.seed < 2**32, f"seed must be in [0, 2^32), got {self.seed}")
+        self._validate_method()
         return self
+
+    def _validate_method(self) -> None:
+        if self.method == "es" and self.planner != "none":
+            raise ConfigError(f"method es is PiZero without a planner: planner must be none, got {self.planner!r}")
+        if self.method not in GRADIENT_METHODS:
+            return
+        if self.planner not in ("muzero", "gumbel"):
+            raise ConfigError(f"method {self.method} searches with planner muzero (PUCT) or gumbel, "
+                              f"got {self.planner!r}")
+        if self.chance_outcomes != 0:
+            raise ConfigError(f"method {self.method} has no chance nodes: chance_outcomes must be 0, "
+                              f"got {self.chance_outcomes}")
+        for name in ("selfplay_episodes", "updates_per_iteration", "batch_size", "replay_size", "unroll_steps",
+                     "action_grid"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value > 0):
+                raise ConfigError(f"{name} must be a positive integer, got {value!r}")
+        if self.replay_size < self.selfplay_episodes:
+            raise ConfigError(f"replay_size {self.replay_size} is below selfplay_episodes {self.selfplay_episodes}: "
+                              "an iteration's episodes would not fit")
+
+    @property
+    def gradient_trained(self) -> bool:
+        """AlphaZero or MuZero: trained by gradients on self-play in one process, not by ES on Ray."""
+        return self.method in GRADIENT_METHODS
 
     @property
     def effective_decoder_inputs(self) -> tuple[str, ...]:
@@ -167,7 +211,7 @@ def largest_divisor_at_most(number: int, limit: int) -> int:
 
 
 def build_config(preset: str = "default", **overrides: Any) -> Config:
-    """Global preset, then the environment's own overrides for it, then explicit overrides (pizero_ray.presets).
+    """Global preset, the environment's overrides for it, the method's, then explicit ones (pizero_ray.presets).
 
     Without an explicit ``chunk_size`` the chunk is the largest divisor of the
     population not above the preset's chunk size (32 by default).
@@ -175,7 +219,9 @@ def build_config(preset: str = "default", **overrides: Any) -> Config:
     if preset not in PRESETS:
         raise ConfigError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
     explicit = {k: v for k, v in overrides.items() if v is not None}
-    values = {**PRESETS[preset], **env_preset(explicit.get("env", Config.env), preset), **explicit}
+    method = explicit.get("method", Config.method)
+    values = {**PRESETS[preset], **env_preset(explicit.get("env", Config.env), preset),
+              **METHOD_PRESETS.get(method, {}), **explicit}
     population = values.get("population", Config.population)
     if "chunk_size" not in explicit and isinstance(population, int) and population > 0:
         # An unchosen chunk size follows the population (24 pairs: one chunk of 24, not an error);

@@ -1,7 +1,8 @@
 """Training presets: config overrides by name, global and per environment.
 
-``build_config(preset, env=...)`` applies ``PRESETS[preset]``, then
-``ENV_PRESETS[env][preset]`` (if any), then explicit overrides. The
+``build_config(preset, env=..., method=...)`` applies ``PRESETS[preset]``,
+then ``ENV_PRESETS[env][preset]`` (if any), then ``METHOD_PRESETS[method]``,
+then explicit overrides. The
 environments know nothing of these: the dependency runs config -> presets
 only. Explicit ``--env-arg`` values replace a preset's ``env_args`` as a whole.
 """
@@ -71,6 +72,15 @@ ENV_PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "pacman": _PACMAN,
     "pacman-po": _PACMAN,
     "sokoban": _SOKOBAN,
+}
+
+
+# Method -> overrides on top of the global and environment presets. es is PiZero without a planner. The
+# gradient-trained baselines take Adam's usual step size and AlphaZero's root noise (Dirichlet fraction 0.25).
+METHOD_PRESETS: dict[str, dict[str, Any]] = {
+    "es": {"planner": "none"},
+    "alphazero": {"learning_rate": 1e-3, "root_noise": 0.25, "chance_outcomes": 0},
+    "muzero": {"learning_rate": 1e-3, "root_noise": 0.25, "chance_outcomes": 0},
 }
 
 

@@ -3,6 +3,7 @@
 import argparse
 import dataclasses
 import json
+import re
 
 import pytest
 
@@ -49,6 +50,9 @@ OLD_DEFAULTS = {
     "pb_c_base": 19652.0, "pb_c_init": 1.25, "perturbation_rank": 0, "planner": "muzero", "population": 256,
     "root_noise": 0.0, "seed": 0, "sigma": 0.1, "episodes_per_member": 1, "weight_decay": 0.0,
 }
+# Settings issue 12 added (the method, and the gradient-trained baselines'): an ES run's are these defaults.
+OLD_DEFAULTS.update({"method": "pizero", "selfplay_episodes": 32, "updates_per_iteration": 8, "batch_size": 128,
+                     "replay_size": 256, "unroll_steps": 5, "action_grid": 16})
 # The paper preset played 5 episodes per member until issue 14: the paper's "Trials: 5" are 5 runs.
 PAPER = {"chance_outcomes": 3, "chunk_size": 40, "learning_rate": 0.001, "population": 1000}
 TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "num_abstract_actions": 2,
@@ -78,6 +82,30 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
 ])
 def test_presets_give_the_configs_they_gave_before_they_moved(preset, overrides, differences):
     assert json.loads(build_config(preset, **overrides).to_json()) == {**OLD_DEFAULTS, **differences}
+
+
+@pytest.mark.parametrize("preset, overrides, expected", [
+    ("default", {"method": "es"}, {"planner": "none", "learning_rate": 0.01}),
+    ("default", {"method": "alphazero"}, {"planner": "muzero", "learning_rate": 1e-3, "root_noise": 0.25}),
+    ("paper", {"method": "muzero"}, {"chance_outcomes": 0, "num_simulations": 10, "hidden_size": 64}),
+    ("default", {"method": "muzero", "planner": "gumbel", "root_noise": 1.0}, {"planner": "gumbel", "root_noise": 1.0}),
+])
+def test_each_method_has_its_preset(preset, overrides, expected):
+    config = build_config(preset, **overrides)
+    assert {name: getattr(config, name) for name in expected} == expected
+
+
+@pytest.mark.parametrize("overrides, message", [
+    ({"method": "sarsa"}, "unknown method 'sarsa' (choose from pizero, es, alphazero, muzero)"),
+    ({"method": "es", "planner": "muzero"}, "planner must be none, got 'muzero'"),
+    ({"method": "alphazero", "planner": "none"}, "method alphazero searches with planner muzero (PUCT) or gumbel"),
+    ({"method": "muzero", "chance_outcomes": 3}, "method muzero has no chance nodes: chance_outcomes must be 0, got 3"),
+    ({"method": "alphazero", "replay_size": 16}, "replay_size 16 is below selfplay_episodes 32"),
+    ({"method": "muzero", "unroll_steps": 0}, "unroll_steps must be a positive integer, got 0"),
+])
+def test_a_bad_method_setting_is_one_line_naming_it(overrides, message):
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        build_config("default", **overrides)
 
 
 def test_environment_presets_name_real_environments_and_presets():

@@ -11,7 +11,9 @@ MATH = ["pizero_ray.config", "pizero_ray.settings", "pizero_ray.presets",
         "pizero_ray.agent", "pizero_ray.agent.networks", "pizero_ray.agent.planner",
         "pizero_ray.agent.decoder", "pizero_ray.agent.pizero", "pizero_ray.agent.episodes", "pizero_ray.es",
         "pizero_ray.es.noise", "pizero_ray.es.shaping", "pizero_ray.es.strategy", "pizero_ray.es.population",
-        "envs"]
+        "pizero_ray.baselines", "pizero_ray.baselines.networks", "pizero_ray.baselines.search",
+        "pizero_ray.baselines.replay", "pizero_ray.baselines.losses", "pizero_ray.baselines.learner",
+        "envs", "envs.discretised"]
 
 
 def _loaded_after_importing(modules: list[str]) -> set[str]:

@@ -37,7 +37,7 @@ def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_ep
 
     def step(carry, t):
         states, observations, memory, done, score = carry
-        action, memory, _ = agent.act(params, memory, observations, jax.random.fold_in(act_key, t))
+        action, memory, _ = agent.act(params, memory, observations, jax.random.fold_in(act_key, t), env_state=states)
         states, observations, reward, step_done = jax.vmap(env.step)(states, action)
         reward = jnp.where(done, 0.0, reward)
         done = done | step_done

@@ -32,8 +32,9 @@ class StepInfo(NamedTuple):
 class Agent(NamedTuple):
     init: Callable[[jax.Array], networks.Params]  # key -> parameters
     initial_memory: Callable[[int], jax.Array]  # batch size -> memory [B, M]
-    # (params, memory [B, M], observation, key) -> (action, new memory, StepInfo)
-    act: Callable[[networks.Params, jax.Array, Observation, jax.Array], tuple[jax.Array, jax.Array, StepInfo]]
+    # (params, memory [B, M], observation, key, env_state=None) -> (action, new memory, StepInfo). The episode
+    # hands every agent the environment's state; only one that plans with the simulator (AlphaZero) reads it.
+    act: Callable[..., tuple[jax.Array, jax.Array, StepInfo | None]]
 
 
 def encode(params: networks.Params, observation: Observation, memory: jax.Array) -> jax.Array:
@@ -59,8 +60,9 @@ def make_agent(config: Config, spec: EnvSpec) -> Agent:
     def initial_memory(batch: int) -> jax.Array:
         return jnp.zeros((batch, memory_size), jnp.float32)
 
-    def act(params: networks.Params, memory: jax.Array, observation: Observation, key: jax.Array):
-        """Chooses actions for a batch of episodes; returns (action, new memory, info)."""
+    def act(params: networks.Params, memory: jax.Array, observation: Observation, key: jax.Array, env_state=None):
+        """Chooses actions for a batch of episodes; returns (action, new memory, info). Never reads env_state."""
+        del env_state
         plan_key, action_key = jax.random.split(key)
         latent = encode(params, observation, memory)
         search = plan(params, latent, plan_key)

@@ -381,10 +381,11 @@ def _cmd_inspect(args) -> int:
     from pizero_ray.storage import checkpoints, runs
 
     run_path = _existing_run(args.run_dir)
-    config, iteration, theta, _, _ = runs.load_run(run_path)
+    config, iteration, theta, _, _, _ = runs.load_run(run_path)
     result = {
         "run_dir": str(run_path),
         "env": config.env,
+        "method": config.method,
         "iteration": iteration,
         "parameters": int(theta.size),
         "parameter_hash": runs.parameter_hash(theta),

@@ -21,17 +21,17 @@ def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None
     import jax
 
     from pizero_ray.agent import episodes as play
-    from pizero_ray.agent import make_agent
     from pizero_ray.storage import runs
 
-    config, iteration, theta, env, layout = runs.load_run(run_path, env_args)
+    config, iteration, theta, env, layout, agent = runs.load_run(run_path, env_args)
     key = jax.random.PRNGKey(seed)
-    evaluator = play.make_evaluator(make_agent(config, env.spec), env, layout.unravel, episodes, final_states=True)
+    evaluator = play.make_evaluator(agent, env, layout.unravel, episodes, final_states=True)
     scores, final_states = evaluator(theta, key)
     scores = np.asarray(scores, dtype=np.float64)
     low, high = confidence_interval95(scores)
     result = {
         "env": config.env,
+        "method": config.method,
         "planner": config.planner,
         "iteration": iteration,
         "episodes": episodes,

@@ -22,13 +22,11 @@ def episode_frames(run_path: Path, episodes: int, seed: int, env_args: dict | No
     import jax
 
     from pizero_ray.agent import episodes as play
-    from pizero_ray.agent import make_agent
     from pizero_ray.storage import runs
 
-    config, _, theta, env, layout = runs.load_run(run_path, env_args)
+    config, _, theta, env, layout, agent = runs.load_run(run_path, env_args)
     if env.render is None:
         raise ConfigError(f"environment {config.env!r} has no renderer")
-    agent = make_agent(config, env.spec)
     record = jax.jit(lambda th, key: play.record_episodes(agent, layout.unravel(th), env, key, episodes))
     trajectory = record(theta, jax.random.PRNGKey(seed))
     dones = np.asarray(trajectory.dones)

@@ -23,14 +23,48 @@ def parameter_hash(theta: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(theta, dtype="<f4").tobytes()).hexdigest()
 
 
+def make_env(config: Config, **env_args) -> Environment:
+    """The environment a run's method acts in: the baselines see continuous actions as a grid (envs.discretised)."""
+    import envs
+    from envs.discretised import discretise
+
+    env = envs.make(config.env, **{**config.env_kwargs(), **env_args})
+    if config.gradient_trained and not env.spec.discrete:
+        env = discretise(env, config.action_grid)
+    return env
+
+
 def initial_state(config: Config, env):
-    """A run's ES strategy, its initial state (parameters from config.seed) and the parameters' layout."""
+    """A run's method, its initial state (parameters from config.seed) and the parameters' layout.
+
+    ES (pizero, es): the ES strategy over ``ESState``. AlphaZero and MuZero:
+    the ``Learner`` over ``LearnerState``. Both states hold ``theta``,
+    ``opt_state`` and ``iteration``: checkpoints treat them alike.
+    """
+    if config.gradient_trained:
+        from pizero_ray.baselines import make_learner
+
+        learner = make_learner(config, env)
+        return learner.init(), FlatParams(learner.size, learner.unravel, None), learner
     from pizero_ray import es
     from pizero_ray.es import population
 
     theta, layout = population.flat_params(config, env)
     strategy = es.make_strategy(config, layout.perturbation)
     return strategy.init(theta), layout, strategy
+
+
+def acting_agent(config: Config, env: Environment, method=None):
+    """The agent that plays a run's episodes (``method``: initial_state's third value, if at hand)."""
+    if config.gradient_trained:
+        if method is None:
+            from pizero_ray.baselines import make_learner
+
+            method = make_learner(config, env)
+        return method.agent
+    from pizero_ray.agent import make_agent
+
+    return make_agent(config, env.spec)
 
 
 def restore(run_path: Path, state, **resume_options):
@@ -61,6 +95,7 @@ class LoadedRun(NamedTuple):
     theta: np.ndarray  # flat parameters
     env: Environment
     layout: FlatParams
+    agent: object  # pizero_ray.agent.Agent: what plays the run's episodes
 
 
 def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
@@ -69,22 +104,21 @@ def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
     ``env_args`` override the run's environment parameters (evaluate on other
     levels, say); they may not change the agent's shape.
     """
-    import envs
-
     config = rundir.read_config(run_path)
-    trained_env = envs.make(config.env, **config.env_kwargs())
-    state, layout, _ = initial_state(config, trained_env)
+    trained_env = make_env(config)
+    state, layout, method = initial_state(config, trained_env)
     theta, opt_state = np.asarray(state.theta), state.opt_state
     env = trained_env
     if env_args:
         try:
-            env = envs.make(config.env, **{**config.env_kwargs(), **env_args})
+            env = make_env(config, **env_args)
         except ValueError as error:
             raise ConfigError(str(error)) from None
         # A different horizon is fine (longer games, say); different shapes are not.
         if env.spec._replace(horizon=0) != trained_env.spec._replace(horizon=0):
             raise ConfigError(f"env args {env_args} change the environment's shapes: the trained agent cannot act")
+    agent = acting_agent(config, env, method if env is trained_env else None)
     restored = checkpoints.restore_latest(run_path, theta, opt_state)
     if restored is None:
-        return LoadedRun(config, 0, theta, env, layout)
-    return LoadedRun(config, restored.iteration, restored.theta, env, layout)
+        return LoadedRun(config, 0, theta, env, layout, agent)
+    return LoadedRun(config, restored.iteration, restored.theta, env, layout, agent)

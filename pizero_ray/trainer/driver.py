@@ -65,19 +65,19 @@ class _Run:
     """One training session: the ES state and strategy, the pool, and where the run is written."""
 
     def __init__(self, run_path: Path, config: Config, options: RunOptions):
-        import envs
-        from pizero_ray.agent import episodes, make_agent
+        from pizero_ray.agent import episodes
 
         self.config, self.options = config, options
-        env = envs.make(config.env, **config.env_kwargs())
-        state, self.layout, self.strategy = runs.initial_state(config, env)
+        env = runs.make_env(config)
+        state, self.layout, self.strategy = runs.initial_state(config, env)  # ES strategy, or a baseline's Learner
         self.state, self.metrics = runs.restore(run_path, state, restart=options.restart)
         self.start_iteration = self.state.iteration
         self.evaluator = None
         if options.eval_every > 0:
-            self.evaluator = episodes.make_evaluator(make_agent(config, env.spec), env, self.layout.unravel,
-                                                     options.eval_episodes)
-        self.pool = WorkerPool(config, options.pool)
+            agent = runs.acting_agent(config, env, self.strategy)
+            self.evaluator = episodes.make_evaluator(agent, env, self.layout.unravel, options.eval_episodes)
+        # The gradient-trained baselines learn in this process; ES farms its population out to the pool.
+        self.pool = None if config.gradient_trained else WorkerPool(config, options.pool)
         self.writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)
         self.log = rundir.MetricsLog(run_path)
         self.wall_offset = self.metrics[-1]["wall_time_s"] if self.metrics else 0.0
@@ -122,6 +122,22 @@ class _Run:
             self.log.write({"iteration": 0, "eval_mean_score": self.evaluate(), "wall_time_s": 0.0})
 
     def iterate(self, stop: Callable[[], bool]) -> dict:
+        """One iteration of the run's method; raises Interrupted on a stop (ES)."""
+        return self._learn() if self.pool is None else self._evolve(stop)
+
+    def _learn(self) -> dict:
+        """A baseline's iteration: self-play, replay, Adam steps (one jitted call)."""
+        started = time.time()
+        state, stats = self.strategy.iterate(self.state)
+        state.theta.block_until_ready()
+        self.state = state
+        losses = {"loss": stats.loss, **stats.parts}
+        return {"iteration": state.iteration, "mean_score": float(stats.mean_score),
+                "std_score": float(stats.std_score), "max_score": float(stats.max_score),
+                "min_score": float(stats.min_score), **{name: float(value) for name, value in losses.items()},
+                "iteration_time_s": time.time() - started, "wall_time_s": self.wall_time_s()}
+
+    def _evolve(self, stop: Callable[[], bool]) -> dict:
         """ask, score the population on the workers, gather the gradient parts, tell; raises Interrupted on a stop."""
         import ray
 
@@ -160,7 +176,8 @@ class _Run:
     def close(self) -> None:
         self.log.close()
         self.writer.close()
-        self.pool.shutdown()
+        if self.pool is not None:
+            self.pool.shutdown()
 
 
 def _score_stats(stats) -> dict:
@@ -186,12 +203,15 @@ def train(
     """
     from pizero_ray.trainer import ray_setup
 
-    connection = ray_setup.init(options.address)  # Ray first: it forks its processes before JAX starts its threads
+    if config.gradient_trained:
+        connection = f"{config.method} in this process (no Ray)"
+    else:  # Ray first: it forks its processes before JAX starts its threads
+        connection = ray_setup.init(options.address)
     compile_cache.enable(options.pool.compile_cache)
     run = _Run(run_path, config, options)
     if on_start:
         on_start({"connection": connection, "start_iteration": run.start_iteration, "parameters": run.layout.size,
-                  "workers": options.pool.workers})
+                  "workers": options.pool.workers if run.pool else 0})
     stop = _StopRequest()
     try:
         with stop:
@@ -210,4 +230,4 @@ def train(
     stopped_by = signal.Signals(stop.signal).name if stop.signal is not None else None
     return {"iteration": run.state.iteration, "parameter_hash": runs.parameter_hash(np.asarray(run.state.theta)),
             "stopped_by": stopped_by, "out_of_time": stop.signal is None and not run.reached_iterations(),
-            "workers_killed": run.pool.kills}
+            "workers_killed": run.pool.kills if run.pool else 0}

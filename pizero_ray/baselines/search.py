@@ -1,0 +1,138 @@
+"""The baselines' searches, with mctx: over the true simulator (AlphaZero) or a learned model (MuZero).
+
+AlphaZero's recurrent function is the environment's own ``step`` on the
+environment state. An episode's end is absorbing: the transition that ends
+it has discount 0 (nothing below it is backed up) and value 0, and any step
+taken from an ended state leaves it unchanged with reward 0 and discount 0,
+so no value is ever backed up past the end of an episode. Illegal actions are
+masked at the root (``invalid_actions``) and in the interior (very negative
+prior logits).
+
+MuZero's recurrent function is the learned dynamics and prediction; the
+model itself learns, from its unroll targets, that past an episode's end
+rewards and values are 0. Only the root's legal actions are known.
+
+``make_search(config, root_fn, recurrent_fn, training)`` binds the mctx policy
+(PUCT as in AlphaZero/MuZero, or Gumbel MuZero) and its hyperparameters:
+in self-play (``training``) the root gets Dirichlet noise (fraction
+``root_noise``) and the action is drawn from the visit counts; in evaluation
+the most visited action is taken, without noise (Gumbel: scale ``root_noise``
+in self-play, 0 in evaluation).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import mctx
+
+from envs.base import Environment, Observation
+from pizero_ray.baselines.networks import Model, PolicyValue, inverse_value_transform
+from pizero_ray.config import Config
+
+
+def _where_done(done: jax.Array, old, new):
+    """``old`` where ``done`` [B], else ``new``, leaf by leaf (leaves [B, ...])."""
+    def pick(a, b):
+        return jnp.where(done.reshape(done.shape + (1,) * (a.ndim - 1)), a, b)
+
+    return jax.tree_util.tree_map(pick, old, new)
+
+
+class SimulatorNode(NamedTuple):
+    """AlphaZero's embedding: the environment state and whether its episode has ended."""
+
+    state: object  # the environment's state pytree, leading dimension B
+    done: jax.Array  # [B] bool
+
+
+def simulator_root(net: PolicyValue, params, observation: Observation, state) -> mctx.RootFnOutput:
+    logits, value = net.apply(params, observation)
+    done = jnp.zeros(value.shape, bool)
+    return mctx.RootFnOutput(prior_logits=logits, value=inverse_value_transform(value),
+                             embedding=SimulatorNode(state, done))
+
+
+def simulator_recurrent_fn(env: Environment, net: PolicyValue):
+    """mctx recurrent function over the true environment."""
+
+    def recurrent_fn(params, key, action, node: SimulatorNode):
+        del key  # the environment's randomness (2048's tiles) lives in its state
+        stepped, observation, reward, step_done = jax.vmap(env.step)(node.state, action)
+        logits, value = net.apply(params, observation)
+        ended = node.done | step_done
+        out = mctx.RecurrentFnOutput(
+            reward=jnp.where(node.done, 0.0, reward),
+            discount=jnp.where(ended, 0.0, 1.0),
+            prior_logits=logits,  # already masked by the new state's legal actions
+            value=jnp.where(ended, 0.0, inverse_value_transform(value)))
+        return out, SimulatorNode(_where_done(node.done, node.state, stepped), ended)
+
+    return recurrent_fn
+
+
+class ModelNode(NamedTuple):
+    """MuZero's embedding: the latent state and the root's action features (what the policy head scores)."""
+
+    latent: jax.Array  # [B, L]
+    action_features: jax.Array  # [B, A, F]
+
+
+def model_root(model: Model, params, observation: Observation, state) -> mctx.RootFnOutput:
+    del state  # MuZero never sees the simulator
+    latent = model.represent(params, observation)
+    logits, value = model.predict(params, latent, observation.action_features)
+    return mctx.RootFnOutput(prior_logits=logits, value=inverse_value_transform(value),
+                             embedding=ModelNode(latent, observation.action_features))
+
+
+def model_recurrent_fn(model: Model):
+    """mctx recurrent function over the learned model (discount 1: the model learns the absorbing end)."""
+
+    def recurrent_fn(params, key, action, node: ModelNode):
+        del key
+        reward, latent = model.dynamics(params, node.latent, action, node.action_features)
+        logits, value = model.predict(params, latent, node.action_features)
+        out = mctx.RecurrentFnOutput(reward=inverse_value_transform(reward), discount=jnp.ones_like(reward),
+                                     prior_logits=logits, value=inverse_value_transform(value))
+        return out, ModelNode(latent, node.action_features)
+
+    return recurrent_fn
+
+
+# (params, observation [B], env state [B], key) -> mctx.PolicyOutput
+Search = Callable[[object, Observation, object, jax.Array], mctx.PolicyOutput]
+
+
+def make_search(config: Config, root_fn, recurrent_fn, training: bool) -> Search:
+    """The configured mctx search over ``recurrent_fn``, its hyperparameters bound."""
+    if config.planner == "gumbel":
+        policy = functools.partial(mctx.gumbel_muzero_policy, num_simulations=config.num_simulations,
+                                   gumbel_scale=config.root_noise if training else 0.0)
+    else:
+        policy = functools.partial(mctx.muzero_policy, num_simulations=config.num_simulations,
+                                   dirichlet_fraction=config.root_noise if training else 0.0,
+                                   temperature=1.0 if training else 0.0,
+                                   pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base)
+
+    def search(params, observation: Observation, state, key: jax.Array) -> mctx.PolicyOutput:
+        root = root_fn(params, observation, state)
+        return policy(params, key, root, recurrent_fn, invalid_actions=~observation.action_mask)
+
+    return search
+
+
+def make_method_search(config: Config, env: Environment, training: bool) -> tuple[Callable, Search]:
+    """(network init, search) for ``config.method``: alphazero over ``env``, muzero over its model."""
+    from pizero_ray.baselines.networks import make_model, make_policy_value
+
+    if config.method == "alphazero":
+        net = make_policy_value(config, env.spec)
+        root_fn, recurrent_fn = functools.partial(simulator_root, net), simulator_recurrent_fn(env, net)
+    else:
+        net = make_model(config, env.spec)
+        root_fn, recurrent_fn = functools.partial(model_root, net), model_recurrent_fn(net)
+    return net.init, make_search(config, root_fn, recurrent_fn, training)
