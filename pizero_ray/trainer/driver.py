@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 
 from pizero_ray.config import Config
-from pizero_ray.storage import checkpoints, runs
+from pizero_ray.storage import checkpoints, runs, tensorboard
 from pizero_ray.storage import run_dir as rundir
 from pizero_ray.trainer import compile_cache
 from pizero_ray.trainer.options import RunOptions
@@ -80,6 +80,7 @@ class _Run:
         self.pool = None if config.gradient_trained else WorkerPool(config, options.pool)
         self.writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)
         self.log = rundir.MetricsLog(run_path)
+        self.events = tensorboard.EventLog(run_path)  # mirrors the metrics for tensorboard --logdir
         self.wall_offset = self.metrics[-1]["wall_time_s"] if self.metrics else 0.0
         self.started = time.time()
         self.evaluating_s = 0.0  # the learning curve's evaluations are measurement, not training time
@@ -119,7 +120,7 @@ class _Run:
             self.save()  # a run killed before its first periodic checkpoint still resumes (prepare_resume)
         if self.evaluator is not None and not self.metrics:
             # Row 0: the untrained agent, so every learning curve has its starting point.
-            self.log.write({"iteration": 0, "eval_mean_score": self.evaluate(), "wall_time_s": 0.0})
+            self.write({"iteration": 0, "eval_mean_score": self.evaluate(), "wall_time_s": 0.0})
 
     def iterate(self, stop: Callable[[], bool]) -> dict:
         """One iteration of the run's method; raises Interrupted on a stop (ES)."""
@@ -169,12 +170,17 @@ class _Run:
         iteration, options = row["iteration"], self.options
         if self.evaluator is not None and (iteration % options.eval_every == 0 or self.done()):
             row["eval_mean_score"] = self.evaluate()
-        self.log.write(row)
+        self.write(row)
         if options.checkpoint_every > 0 and iteration % options.checkpoint_every == 0:
             self.save()
 
+    def write(self, row: dict) -> None:
+        self.log.write(row)  # the source of truth first
+        self.events.write(row)
+
     def close(self) -> None:
         self.log.close()
+        self.events.close()
         self.writer.close()
         if self.pool is not None:
             self.pool.shutdown()

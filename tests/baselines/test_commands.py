@@ -11,6 +11,24 @@ TINY_BASELINE = ["--preset", "tiny", "--selfplay-episodes", "4", "--batch-size",
                  "--updates-per-iteration", "2", "--no-progress", "--checkpoint-every", "1"]
 
 
+def scalars(run) -> dict[str, list[int]]:
+    """Tag -> steps of the scalars in a run's TensorBoard event files (TFRecord framing, Event protos)."""
+    import struct
+
+    from tensorboardX.proto.event_pb2 import Event
+
+    found: dict[str, list[int]] = {}
+    for path in sorted((run / "tensorboard").iterdir()):
+        data = path.read_bytes()
+        while data:
+            (length,) = struct.unpack("<Q", data[:8])
+            event = Event.FromString(data[12:12 + length])
+            data = data[12 + length + 4:]
+            for value in event.summary.value:
+                found.setdefault(value.tag, []).append(event.step)
+    return found
+
+
 def _json_line(out: str) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
@@ -38,6 +56,8 @@ def test_a_baseline_trains_resumes_and_is_evaluated_rendered_and_inspected(tmp_p
     assert [row["iteration"] for row in rows] == [1, 2, 3]
     assert {"mean_score", "loss", "policy_loss", "value_loss", "wall_time_s"} <= set(rows[-1])
     assert rows[2]["wall_time_s"] >= rows[1]["wall_time_s"] > 0  # training time carries on across the resume
+    events = scalars(run)  # TensorBoard mirrors the metrics, across the resume too
+    assert sorted(events["pizero/mean_score"]) == [1, 2, 3] and sorted(events["pizero/policy_loss"]) == [1, 2, 3]
 
     assert main(["eval", str(run), "--episodes", "3", "--json"]) == 0
     result = _json_line(capsys.readouterr().out)
