@@ -1,6 +1,7 @@
 """The layers, checked: the math imports neither Ray nor Orbax, and loading a run needs no Ray."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -12,6 +13,11 @@ MATH = ["pizero_ray.config", "pizero_ray.settings", "pizero_ray.presets",
         "pizero_ray.agent.decoder", "pizero_ray.agent.pizero", "pizero_ray.agent.episodes", "pizero_ray.es",
         "pizero_ray.es.noise", "pizero_ray.es.shaping", "pizero_ray.es.strategy", "pizero_ray.es.population",
         "envs"]
+
+
+def _compiler_flags() -> dict[str, str]:
+    """The XLA flags conftest set for the tests (a faster compile): they decide nothing about imports."""
+    return {"XLA_FLAGS": os.environ["XLA_FLAGS"]} if "XLA_FLAGS" in os.environ else {}
 
 
 def _loaded_after_importing(modules: list[str]) -> set[str]:
@@ -51,7 +57,7 @@ from pizero_ray.config import build_config
 from pizero_ray.storage import checkpoints, run_dir, runs
 from pizero_ray.cli.evaluate import evaluate_run
 path = Path({str(tmp_path)!r})
-config = build_config("tiny", env="tsp")
+config = build_config("tiny", env="tsp", planner="none")
 run_dir.write_config(path, config)
 state, _, _ = runs.initial_state(config, envs.make("tsp"))
 writer = checkpoints.CheckpointWriter(path)
@@ -61,7 +67,7 @@ result = evaluate_run(path, episodes=4, seed=0)
 loaded = {{m.split(".")[0] for m in sys.modules}} | {{m for m in sys.modules if m.startswith("pizero_ray.")}}
 print(json.dumps({{"iteration": result["iteration"], "loaded": sorted(loaded)}}))
 """
-    env_vars = {"JAX_PLATFORMS": "cpu", "PATH": "/usr/bin:/bin", "PYTHONPATH": REPO}
+    env_vars = {"JAX_PLATFORMS": "cpu", "PATH": "/usr/bin:/bin", "PYTHONPATH": REPO, **_compiler_flags()}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env_vars)
     assert out.returncode == 0, out.stderr[-2000:]
     report = json.loads(out.stdout.strip().splitlines()[-1])
