@@ -1,6 +1,7 @@
 """The layers, checked: the math imports neither Ray nor Orbax, and loading a run needs no Ray."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -14,6 +15,11 @@ MATH = ["pizero_ray.config", "pizero_ray.settings", "pizero_ray.presets",
         "pizero_ray.baselines", "pizero_ray.baselines.networks", "pizero_ray.baselines.search",
         "pizero_ray.baselines.replay", "pizero_ray.baselines.losses", "pizero_ray.baselines.learner",
         "envs", "envs.discretised"]
+
+
+def _compiler_flags() -> dict[str, str]:
+    """The XLA flags conftest set for the tests (a faster compile): they decide nothing about imports."""
+    return {"XLA_FLAGS": os.environ["XLA_FLAGS"]} if "XLA_FLAGS" in os.environ else {}
 
 
 def _loaded_after_importing(modules: list[str]) -> set[str]:
@@ -53,7 +59,7 @@ from pizero_ray.config import build_config
 from pizero_ray.storage import checkpoints, run_dir, runs
 from pizero_ray.cli.evaluate import evaluate_run
 path = Path({str(tmp_path)!r})
-config = build_config("tiny", env="tsp")
+config = build_config("tiny", env="tsp", planner="none")
 run_dir.write_config(path, config)
 state, _, _ = runs.initial_state(config, envs.make("tsp"))
 writer = checkpoints.CheckpointWriter(path)
@@ -63,7 +69,7 @@ result = evaluate_run(path, episodes=4, seed=0)
 loaded = {{m.split(".")[0] for m in sys.modules}} | {{m for m in sys.modules if m.startswith("pizero_ray.")}}
 print(json.dumps({{"iteration": result["iteration"], "loaded": sorted(loaded)}}))
 """
-    env_vars = {"JAX_PLATFORMS": "cpu", "PATH": "/usr/bin:/bin", "PYTHONPATH": REPO}
+    env_vars = {"JAX_PLATFORMS": "cpu", "PATH": "/usr/bin:/bin", "PYTHONPATH": REPO, **_compiler_flags()}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env_vars)
     assert out.returncode == 0, out.stderr[-2000:]
     report = json.loads(out.stdout.strip().splitlines()[-1])

@@ -66,7 +66,7 @@ def test_continuous_actions_stay_in_bounds():
     params = agent.init(jax.random.PRNGKey(0))
     vector = jax.random.normal(jax.random.PRNGKey(1), (16, 6))
     obs = Observation(vector, jnp.zeros((16, 0, 0)), jnp.zeros((16, 0), bool))
-    action, _, _ = agent.act(params, agent.initial_memory(16), obs, jax.random.PRNGKey(2))
+    action, _, _ = jax.jit(agent.act)(params, agent.initial_memory(16), obs, jax.random.PRNGKey(2))  # one compile
     assert action.shape == (16, 2)
     assert np.all((np.asarray(action) >= -1.0) & (np.asarray(action) <= 2.0))
     assert len({tuple(row) for row in np.asarray(action).round(4)}) > 1

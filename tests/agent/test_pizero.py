@@ -15,12 +15,18 @@ def tiny_agent(tiny_config, tsp_env):
     return make_agent(tiny_config, tsp_env.spec)
 
 
-def test_act_shapes_and_legal_actions(tiny_config, tsp_env, tiny_agent):
+@pytest.fixture(scope="module")
+def act(tiny_agent):
+    """The tiny agent's act, jitted once for the module: its tests share a batch of 5, so one compile serves them."""
+    return jax.jit(tiny_agent.act)
+
+
+def test_act_shapes_and_legal_actions(tiny_config, tsp_env, tiny_agent, act):
     params = tiny_agent.init(jax.random.PRNGKey(0))
     _, obs = _observations(tsp_env, 5)
     obs = obs._replace(action_mask=obs.action_mask.at[:, :9].set(False))  # only city 9 is legal
     memory = tiny_agent.initial_memory(5)
-    action, new_memory, info = jax.jit(tiny_agent.act)(params, memory, obs, jax.random.PRNGKey(1))
+    action, new_memory, info = act(params, memory, obs, jax.random.PRNGKey(1))
     assert action.shape == (5,) and list(np.asarray(action)) == [9] * 5
     assert new_memory.shape == (5, tiny_config.memory_size)
     assert not np.allclose(new_memory, memory)  # memory takes in observation and action
@@ -28,12 +34,11 @@ def test_act_shapes_and_legal_actions(tiny_config, tsp_env, tiny_agent):
     assert info.plan.visit_probs.shape == (5, tiny_config.num_abstract_actions)
 
 
-def test_act_is_deterministic_given_a_key(tsp_env, tiny_agent):
+def test_act_is_deterministic_given_a_key(tsp_env, tiny_agent, act):
     params = tiny_agent.init(jax.random.PRNGKey(0))
-    _, obs = _observations(tsp_env, 4)
-    act = jax.jit(tiny_agent.act)
-    first = act(params, tiny_agent.initial_memory(4), obs, jax.random.PRNGKey(3))
-    second = act(params, tiny_agent.initial_memory(4), obs, jax.random.PRNGKey(3))
+    _, obs = _observations(tsp_env, 5)
+    first = act(params, tiny_agent.initial_memory(5), obs, jax.random.PRNGKey(3))
+    second = act(params, tiny_agent.initial_memory(5), obs, jax.random.PRNGKey(3))
     for a, b in zip(jax.tree_util.tree_leaves(first), jax.tree_util.tree_leaves(second)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
@@ -48,19 +53,21 @@ def test_no_planner_has_no_abstract_model_and_acts(tsp_env):
     assert not np.asarray(info.plan.visit_probs).any()  # no search, an all-zero result
 
 
-def test_the_memory_reads_the_action_taken(tiny_config, tsp_env, tiny_agent):
-    # The same observation and memory, but different legal actions forced by the
+def test_the_memory_reads_the_action_taken(tiny_config, tsp_env, tiny_agent, act):
+    # The same observations and memory, but different legal actions forced by the
     # mask: the new memories differ, because the GRU reads the taken action's features.
     params = tiny_agent.init(jax.random.PRNGKey(0))
-    _, obs = _observations(tsp_env, 1)
-    memory = tiny_agent.initial_memory(1)
+    _, obs = _observations(tsp_env, 5)
+    memory = tiny_agent.initial_memory(5)
     memories = []
     for city in (3, 7):
-        only = obs._replace(action_mask=np.arange(obs.action_mask.shape[1])[None] == city)
-        action, new_memory, _ = tiny_agent.act(params, memory, only, jax.random.PRNGKey(0))
-        assert int(action[0]) == city
+        only = obs._replace(action_mask=np.broadcast_to(np.arange(obs.action_mask.shape[1]) == city,
+                                                        obs.action_mask.shape))
+        action, new_memory, _ = act(params, memory, only, jax.random.PRNGKey(0))
+        assert list(np.asarray(action)) == [city] * 5
         memories.append(np.asarray(new_memory))
-    assert not np.allclose(memories[0], memories[1])
+    for first, second in zip(*memories):  # each observation's memory
+        assert not np.allclose(first, second)
 
 
 def test_planner_choice_leaves_the_encoder_memory_and_decoder_initialisation_alone(tsp_env):

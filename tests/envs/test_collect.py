@@ -177,7 +177,7 @@ def test_eval_and_render_from_the_cli(tmp_path, capsys):
     from pizero_ray.storage import run_dir
 
     path = tmp_path / "run"
-    run_dir.write_config(path, build_config("tiny", env="collect"))
+    run_dir.write_config(path, build_config("tiny", env="collect", planner="none"))  # the cheapest agent to compile
     assert main(["eval", str(path), "--episodes", "16", "--json"]) == 0
     evaluation = json.loads(capsys.readouterr().out)
     assert evaluation["env"] == "collect" and -12 <= evaluation["mean_score"] <= 0

@@ -200,7 +200,7 @@ def test_eval_and_render_from_the_cli(tmp_path, capsys):
     from pizero_ray.storage import run_dir
 
     path = tmp_path / "run"
-    run_dir.write_config(path, build_config("tiny", env="flp-mean"))
+    run_dir.write_config(path, build_config("tiny", env="flp-mean", planner="none"))  # the cheapest agent to compile
     assert main(["eval", str(path), "--episodes", "16", "--json"]) == 0
     evaluation = json.loads(capsys.readouterr().out)
     assert evaluation["env"] == "flp-mean" and evaluation["mean_score"] < 0

@@ -16,10 +16,12 @@ from pizero_ray.storage import checkpoints, run_dir, runs
 from pizero_ray.trainer import driver
 
 ITERATIONS = 12
-# Big enough that an iteration takes a noticeable moment, so the driver can be hit mid-run.
-CONFIG = build_config("tiny", population=64, chunk_size=8)
-TRAIN_ARGS = ["--preset", "tiny", "--population", "64", "--chunk-size", "8", "--checkpoint-every", "3",
-              "--workers", "2", "--no-progress"]
+# Big enough that an iteration takes a noticeable moment, so the driver can be hit mid-run. No planner: what
+# is checked here is the run dir (checkpoints hold the flat parameters, whatever the agent), and each driver and
+# worker traces and compiles the agent; without the search that is a third of the work.
+CONFIG = build_config("tiny", population=64, chunk_size=8, planner="none")
+TRAIN_ARGS = ["--preset", "tiny", "--population", "64", "--chunk-size", "8", "--planner", "none",
+              "--checkpoint-every", "3", "--workers", "2", "--no-progress"]
 
 
 @pytest.fixture(scope="module")
@@ -49,10 +51,13 @@ def _wait_for_rows(path: Path, rows: int, process, timeout_s: float = 300):
     raise AssertionError(f"{path} never reached {rows} metrics rows")
 
 
-def _resume(path, cluster, cache):
-    process = _pizero(["resume", str(path), "--iterations", str(ITERATIONS), "--workers", "2"], cluster, cache)
-    out, err = process.communicate(timeout=600)
-    assert process.returncode == 0, err
+def _resume(path, cache, capsys):
+    """`pizero resume` in this process, a new driver on the session's cluster (a subprocess would only add its
+    start-up: importing JAX and Ray, joining the cluster)."""
+    capsys.readouterr()
+    code = main(["resume", str(path), "--iterations", str(ITERATIONS), "--workers", "2", "--compile-cache", cache])
+    out, err = capsys.readouterr()
+    assert code == 0, err
     return json.loads(out.strip().splitlines()[-1])
 
 
@@ -61,7 +66,7 @@ def _iterations(path):
 
 
 def test_driver_sigkilled_before_its_first_periodic_checkpoint_then_resumed(
-        tmp_path, ray_cluster, compile_cache_dir, reference):
+        tmp_path, ray_cluster, compile_cache_dir, reference, capsys):
     """SIGKILL mid-run with rows but no periodic checkpoint yet, what a KubeRay retry meets: the one saved
     before the first iteration is there, and the resumed run ends with the uninterrupted run's parameters."""
     path = tmp_path / "run"
@@ -72,14 +77,14 @@ def test_driver_sigkilled_before_its_first_periodic_checkpoint_then_resumed(
     process.kill()  # SIGKILL: no handler runs, no emergency save
     process.wait()
     assert checkpoints.checkpoint_steps(path) == [0]
-    result = _resume(path, ray_cluster, compile_cache_dir)
+    result = _resume(path, compile_cache_dir, capsys)
     assert result["iteration"] == ITERATIONS
     assert result["parameter_hash"] == reference[1]
     assert _iterations(path) == list(range(1, ITERATIONS + 1))  # no duplicate, no missing iteration
     assert [record["row"]["iteration"] for record in _dropped(path)][:3] == [1, 2, 3]  # the cut rows are kept
 
 
-def test_sigterm_saves_a_checkpoint_and_resume_matches(tmp_path, ray_cluster, compile_cache_dir, reference):
+def test_sigterm_saves_a_checkpoint_and_resume_matches(tmp_path, ray_cluster, compile_cache_dir, reference, capsys):
     path = tmp_path / "run"
     process = _pizero(["train", "--run-dir", str(path), "--iterations", str(ITERATIONS), *TRAIN_ARGS],
                       ray_cluster, compile_cache_dir)
@@ -91,7 +96,7 @@ def test_sigterm_saves_a_checkpoint_and_resume_matches(tmp_path, ray_cluster, co
     done = _iterations(path)
     assert checkpoints.checkpoint_steps(path)[-1] == done[-1]  # the emergency save holds the last iteration
     assert done[-1] < ITERATIONS
-    result = _resume(path, ray_cluster, compile_cache_dir)
+    result = _resume(path, compile_cache_dir, capsys)
     assert result["parameter_hash"] == reference[1]
     assert _iterations(path) == list(range(1, ITERATIONS + 1))
 
@@ -116,7 +121,7 @@ def test_truncated_checkpoint_falls_back_to_the_previous_one(tmp_path, ray_clust
     assert json.loads(captured.out)["iteration"] == 9
     assert str(path / "checkpoints" / "12") in captured.err  # the bad checkpoint is named
 
-    result = _resume(path, ray_cluster, compile_cache_dir)
+    result = _resume(path, compile_cache_dir, capsys)
     assert result["parameter_hash"] == reference[1]
     assert len(list((path / "checkpoints-corrupt").iterdir())) == 1  # kept aside, not deleted
     assert checkpoints.checkpoint_steps(path)[-1] == ITERATIONS

@@ -13,13 +13,28 @@ from pizero_ray.storage import run_dir, runs
 from pizero_ray.trainer import driver
 
 
-def _train(path, iterations, workers, compile_cache_dir, cpus_per_worker=1.0, **overrides):
+def _train(path, iterations, workers, compile_cache_dir, cpus_per_worker=1.0, eval_every=1, **overrides):
+    """``eval_every=0`` where a test compares only parameters: the driver's evaluator is traced afresh each run."""
     config = build_config("tiny", **overrides)
     run_dir.write_config(path, config)
     options = driver.RunOptions.create(iterations=iterations, workers=workers, compile_cache=compile_cache_dir,
-                                       checkpoint_every=2, eval_every=1, eval_episodes=8,
+                                       checkpoint_every=2, eval_every=eval_every, eval_episodes=8,
                                        cpus_per_worker=cpus_per_worker)
     return driver.train(path, config, options)
+
+
+@pytest.fixture(scope="module")
+def three_iterations(ray_session, tmp_path_factory, compile_cache_dir):
+    """(run dir, result) of three iterations on two workers; tests read it, none changes it."""
+    path = tmp_path_factory.mktemp("three-iterations") / "run"
+    return path, _train(path, 3, 2, compile_cache_dir)
+
+
+@pytest.fixture(scope="module")
+def two_iterations(ray_session, tmp_path_factory, compile_cache_dir):
+    """(run dir, result) of two iterations on two workers; tests read it, none changes it."""
+    path = tmp_path_factory.mktemp("two-iterations") / "run"
+    return path, _train(path, 2, 2, compile_cache_dir)
 
 
 def _inspect(path, capsys):
@@ -27,9 +42,8 @@ def _inspect(path, capsys):
     return json.loads(capsys.readouterr().out)
 
 
-def test_two_workers_write_metrics_checkpoints_and_a_hash(ray_session, tmp_path, compile_cache_dir, capsys):
-    path = tmp_path / "run"
-    result = _train(path, 3, 2, compile_cache_dir)
+def test_two_workers_write_metrics_checkpoints_and_a_hash(three_iterations, tmp_path, capsys):
+    path, result = three_iterations
     rows = run_dir.read_metrics(path)
     assert [row["iteration"] for row in rows] == [0, 1, 2, 3]
     assert set(rows[0]) == {"iteration", "eval_mean_score", "wall_time_s"}  # the untrained agent
@@ -65,18 +79,23 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(ray_session, tmp_path,
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_worker_count_does_not_change_the_result(ray_session, tmp_path, compile_cache_dir):
-    one = _train(tmp_path / "one", 2, 1, compile_cache_dir)
-    three = _train(tmp_path / "three", 2, 3, compile_cache_dir)
-    # One worker with 2 CPUs runs two JAX CPU devices, a chunk on each at once.
-    two_devices = _train(tmp_path / "two-devices", 2, 1, compile_cache_dir, cpus_per_worker=2.0)
-    assert one["parameter_hash"] == three["parameter_hash"] == two_devices["parameter_hash"]
+def test_worker_count_does_not_change_the_result(two_iterations, tmp_path, compile_cache_dir):
+    # Two workers (the module's run; test_gradient_parts... finds it equal to no workers at all, the update
+    # computed in the test process), three workers, and one worker with 2 CPUs: it runs two JAX CPU devices,
+    # a chunk on each at once. (One worker with one device: test_pool.py's reference run.)
+    # (The learning curve's evaluations leave the parameters alone: these two runs skip them.)
+    two = two_iterations[1]
+    three = _train(tmp_path / "three", 2, 3, compile_cache_dir, eval_every=0)
+    two_devices = _train(tmp_path / "two-devices", 2, 1, compile_cache_dir, cpus_per_worker=2.0, eval_every=0)
+    assert two["parameter_hash"] == three["parameter_hash"] == two_devices["parameter_hash"]
 
 
-def test_resume_continues_exactly(ray_session, tmp_path, compile_cache_dir):
-    straight = _train(tmp_path / "straight", 3, 2, compile_cache_dir)
+def test_resume_continues_exactly(three_iterations, two_iterations, tmp_path, compile_cache_dir):
+    import shutil
+
+    straight = three_iterations[1]
     path = tmp_path / "split"
-    _train(path, 1, 2, compile_cache_dir)
+    shutil.copytree(two_iterations[0], path)  # a run stopped after two of the three iterations
     config = run_dir.read_config(path)
     options = driver.RunOptions.create(iterations=3, workers=2, compile_cache=compile_cache_dir, checkpoint_every=2,
                                        eval_every=1, eval_episodes=8)
@@ -85,7 +104,7 @@ def test_resume_continues_exactly(ray_session, tmp_path, compile_cache_dir):
     assert [row["iteration"] for row in run_dir.read_metrics(path)] == [0, 1, 2, 3]
 
 
-def test_gradient_parts_from_workers_equal_the_update_in_one_process(ray_session, tmp_path, compile_cache_dir):
+def test_gradient_parts_from_workers_equal_the_update_in_one_process(two_iterations):
     """Workers return each chunk's share from the noise they kept; the driver's own path regenerates it."""
     import jax.numpy as jnp
 
@@ -93,7 +112,7 @@ def test_gradient_parts_from_workers_equal_the_update_in_one_process(ray_session
     from pizero_ray import es
     from pizero_ray.es import population
 
-    trained = _train(tmp_path / "run", 2, 2, compile_cache_dir)
+    trained_path, trained = two_iterations
     config = build_config("tiny")
     env = envs.make(config.env, **config.env_kwargs())
     theta, layout = population.flat_params(config, env)
@@ -112,12 +131,12 @@ def test_gradient_parts_from_workers_equal_the_update_in_one_process(ray_session
         state, _ = strategy.tell(state, scores, valid, parts)
     assert state.iteration == 2
     assert runs.parameter_hash(np.asarray(state.theta)) == trained["parameter_hash"]
-    rows = run_dir.read_metrics(tmp_path / "run")
+    rows = run_dir.read_metrics(trained_path)
     assert [row["gradient_parts_on_driver"] for row in rows[1:]] == [0, 0]  # every part came from a worker
 
 
 def test_a_wall_clock_budget_stops_with_a_checkpoint_and_resume_raises_it(ray_session, tmp_path, compile_cache_dir):
-    config = build_config("tiny")
+    config = build_config("tiny", planner="none")  # the budget is the driver's; the agent is the cheapest to start
     path = tmp_path / "budget"
     run_dir.write_config(path, config)
 

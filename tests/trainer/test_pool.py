@@ -8,7 +8,10 @@ from pizero_ray.trainer import driver
 from tests.conftest import OBJECT_STORE_BYTES
 
 ITERATIONS = 4
-CONFIG = build_config("tiny", population=8)  # 4 chunks of 2 pairs per iteration
+# 4 chunks of 2 pairs per iteration. No planner: what is checked here is the pool (faults, nodes, stragglers),
+# and each worker it starts traces and compiles the agent; without the search that is a third of the work.
+# The planner's agent across workers is test_driver.py's and test_local_devices.py's.
+CONFIG = build_config("tiny", population=8, planner="none")
 
 
 def _train(path, compile_cache_dir, on_iteration=None, **options):
@@ -78,8 +81,8 @@ def test_chaos_command_reports_identical_hashes(tmp_path, compile_cache_dir, cap
 
     from pizero_ray.cli import main
 
-    code = main(["chaos", "--run-dir", str(tmp_path), "--preset", "tiny", "--population", "8", "--iterations", "3",
-                 "--kills", "2", "--compile-cache", compile_cache_dir, "--no-progress"])
+    code = main(["chaos", "--run-dir", str(tmp_path), "--preset", "tiny", "--population", "8", "--planner", "none",
+                 "--iterations", "3", "--kills", "2", "--compile-cache", compile_cache_dir, "--no-progress"])
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert code == 0 and report["identical"] and report["workers_killed"] == 2
     assert report["clean_parameter_hash"] == report["chaos_parameter_hash"]
