@@ -16,12 +16,14 @@ from pizero_ray.storage import checkpoints, run_dir, runs
 from pizero_ray.trainer import driver
 
 ITERATIONS = 12
-# Big enough that an iteration takes a noticeable moment, so the driver can be hit mid-run. No planner: what
-# is checked here is the run dir (checkpoints hold the flat parameters, whatever the agent), and each driver and
-# worker traces and compiles the agent; without the search that is a third of the work.
+# Big enough that an iteration takes a noticeable moment, so the driver can be hit mid-run. What is checked
+# here is the run dir: checkpoints hold the flat parameters, whatever the agent and however many workers
+# scored them. So no planner, and one worker per run: each worker (and the driver) traces and compiles the
+# agent at start-up, a third of the work without the search.
+WORKERS = "1"
 CONFIG = build_config("tiny", population=64, chunk_size=8, planner="none")
 TRAIN_ARGS = ["--preset", "tiny", "--population", "64", "--chunk-size", "8", "--planner", "none",
-              "--checkpoint-every", "3", "--workers", "2", "--no-progress"]
+              "--checkpoint-every", "3", "--workers", WORKERS, "--no-progress"]
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +31,7 @@ def reference(ray_session, tmp_path_factory, compile_cache_dir):
     """An uninterrupted run: its directory and final parameter hash."""
     path = tmp_path_factory.mktemp("uninterrupted")
     run_dir.write_config(path, CONFIG)
-    options = driver.RunOptions.create(iterations=ITERATIONS, workers=2, checkpoint_every=3,
+    options = driver.RunOptions.create(iterations=ITERATIONS, workers=int(WORKERS), checkpoint_every=3,
                                        compile_cache=compile_cache_dir)
     return path, driver.train(path, CONFIG, options)["parameter_hash"]
 
@@ -55,7 +57,7 @@ def _resume(path, cache, capsys):
     """`pizero resume` in this process, a new driver on the session's cluster (a subprocess would only add its
     start-up: importing JAX and Ray, joining the cluster)."""
     capsys.readouterr()
-    code = main(["resume", str(path), "--iterations", str(ITERATIONS), "--workers", "2", "--compile-cache", cache])
+    code = main(["resume", str(path), "--iterations", str(ITERATIONS), "--workers", WORKERS, "--compile-cache", cache])
     out, err = capsys.readouterr()
     assert code == 0, err
     return json.loads(out.strip().splitlines()[-1])
@@ -242,7 +244,7 @@ def test_a_second_resume_after_a_full_quarantine_refuses_and_restart_keeps_the_r
                        "to start again from iteration 0, keeping what it replaces, add --restart")
     assert (path / "metrics.jsonl").read_text() == metrics
 
-    assert main(["resume", str(path), "--iterations", "2", "--restart", "--workers", "2", "--no-progress",
+    assert main(["resume", str(path), "--iterations", "2", "--restart", "--workers", WORKERS, "--no-progress",
                  "--compile-cache", compile_cache_dir]) == 0
     assert _iterations(path) == [1, 2]
     dropped = _dropped(path)
