@@ -1,3 +1,4 @@
+import concurrent.futures
 import os
 import shutil
 import tempfile
@@ -82,3 +83,25 @@ def ray_session(ray_cluster):
     import ray
 
     return ray
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "readme_walkthrough: the README walkthrough's test (see readme_walkthrough)")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def readme_walkthrough(request, tmp_path_factory):
+    """The README's cluster walkthrough (tests/test_job_submit.py), running in a background thread.
+
+    It starts as the session begins, when its test (marked readme_walkthrough)
+    is selected: the walkthrough takes minutes, mostly waiting on Ray's CLI,
+    its jobs' start-ups and its nodes' shutdown, and so overlaps the tests
+    before it. A Future of run_walkthrough's result; None when not selected.
+    The session waits for it before it ends, so its cluster is always stopped.
+    """
+    selected = [item for item in request.session.items if item.get_closest_marker("readme_walkthrough")]
+    if not selected:
+        yield None
+        return
+    with concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="readme-walkthrough") as pool:
+        yield pool.submit(selected[0].module.run_walkthrough, tmp_path_factory.mktemp("readme-walkthrough"))
