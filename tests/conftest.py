@@ -66,11 +66,14 @@ def ray_cluster():
     The head holds no CPUs (only the driver runs there); one worker node holds
     3 CPUs for ordinary tests; tests that need nodes to come and go add their
     own nodes with a custom resource so that only their workers land there.
+    No dashboard, as pizero's own local instance (ray_setup.init): no test
+    needs it, and its processes cost a 2-core machine CPU all session long.
     """
     import ray
     from ray.cluster_utils import Cluster
 
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0, "object_store_memory": OBJECT_STORE_BYTES})
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0, "object_store_memory": OBJECT_STORE_BYTES,
+                                                            "include_dashboard": False})
     cluster.add_node(num_cpus=3, object_store_memory=OBJECT_STORE_BYTES)
     ray.init(address=cluster.address, logging_level="ERROR")
     yield cluster
