@@ -97,8 +97,9 @@ def test_resume_continues_exactly(three_iterations, two_iterations, tmp_path, co
     path = tmp_path / "split"
     shutil.copytree(two_iterations[0], path)  # a run stopped after two of the three iterations
     config = run_dir.read_config(path)
-    options = driver.RunOptions.create(iterations=3, workers=2, compile_cache=compile_cache_dir, checkpoint_every=2,
-                                       eval_every=1, eval_episodes=8)
+    # One worker and no evaluations (the driver traces its evaluator afresh each run): neither changes the
+    # parameters, which must come out as the straight run's.
+    options = driver.RunOptions.create(iterations=3, workers=1, compile_cache=compile_cache_dir, checkpoint_every=2)
     resumed = driver.train(path, config, options)
     assert resumed["parameter_hash"] == straight["parameter_hash"]
     assert [row["iteration"] for row in run_dir.read_metrics(path)] == [0, 1, 2, 3]
