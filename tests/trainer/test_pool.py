@@ -81,8 +81,11 @@ def test_chaos_command_reports_identical_hashes(tmp_path, compile_cache_dir, cap
 
     from pizero_ray.cli import main
 
+    # One worker: each kill takes the pool's only worker, whose chunks then wait for its replacement (the
+    # kills with a second worker carrying on are test_sigkilled_workers_mid_iteration's).
     code = main(["chaos", "--run-dir", str(tmp_path), "--preset", "tiny", "--population", "8", "--planner", "none",
-                 "--iterations", "3", "--kills", "2", "--compile-cache", compile_cache_dir, "--no-progress"])
+                 "--iterations", "3", "--kills", "2", "--workers", "1", "--compile-cache", compile_cache_dir,
+                 "--no-progress"])
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert code == 0 and report["identical"] and report["workers_killed"] == 2
     assert report["clean_parameter_hash"] == report["chaos_parameter_hash"]
