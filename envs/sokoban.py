@@ -218,6 +218,7 @@ def references(initial_states: SokobanState, scores: np.ndarray, *, random_agent
         "mean_boxes": float(num_boxes.mean()),
         "solved_fraction": float(np.mean(scores >= num_boxes - 0.5)),  # solved <=> every box on a goal
         "random_goals_covered": float(random_scores.mean()),
+        "random_score": float(random_scores.mean()),  # the same, under the name every environment uses
         "random_solved_fraction": float(np.mean(random_scores >= num_boxes - 0.5)),
     }
 

@@ -119,13 +119,18 @@ def references(initial_states: TSPState, scores: np.ndarray) -> dict[str, float]
     """The agent's tours next to nearest neighbour and, for n <= 12, the exact optimum."""
     coordinates = np.asarray(initial_states.coordinates, dtype=np.float64)
     tours = -np.asarray(scores, dtype=np.float64)
+    nearest = float(nearest_neighbour_tour_length(coordinates).mean())
+    # *_score: the same in the agent's units (minus the tour length), for plots beside its scores.
     out = {
         "mean_tour_length": float(tours.mean()),
-        "nearest_neighbour_tour_length": float(nearest_neighbour_tour_length(coordinates).mean()),
+        "nearest_neighbour_tour_length": nearest,
+        "nearest_neighbour_score": -nearest,
+        "random_score": -float(random_tour_length(coordinates).mean()),
     }
     if coordinates.shape[1] <= MAX_EXACT_CITIES:
         optimal = optimal_tour_length(coordinates)
         out["optimal_tour_length"] = float(optimal.mean())
+        out["optimal_score"] = -out["optimal_tour_length"]
         out["ratio_to_optimal"] = float(tours.mean() / optimal.mean())
         out["mean_optimality_gap"] = float((tours / optimal - 1.0).mean())
     return out
@@ -193,6 +198,15 @@ def optimal_tour_length(coordinates: np.ndarray) -> np.ndarray:
             cost[:, subset, k] = np.min(cost[:, previous, others] + d[:, 1 + np.array(others), 1 + k], axis=1)
     best = np.min(cost[:, (1 << m) - 1, :] + d[:, 1:, 0], axis=1)
     return best[0] if single else best
+
+
+def random_tour_length(coordinates: np.ndarray, seed: int = 0) -> np.ndarray:
+    """The length of a uniformly random tour of each instance (a fixed seed); [B,n,2] -> [B]."""
+    coordinates = np.asarray(coordinates, dtype=np.float64)
+    rng = np.random.default_rng(seed)
+    order = np.argsort(rng.random(coordinates.shape[:2]), axis=1)
+    tours = np.take_along_axis(coordinates, order[..., None], axis=1)
+    return np.linalg.norm(tours - np.roll(tours, -1, axis=1), axis=-1).sum(axis=1)
 
 
 def nearest_neighbour_tour_length(coordinates: np.ndarray, start: int = 0) -> np.ndarray:

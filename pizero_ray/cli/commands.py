@@ -101,11 +101,11 @@ def _help(s: Setting, show_default: bool) -> str:
     return text.replace("%", "%%")
 
 
-def _add_settings(parser: argparse.ArgumentParser, cls: type, show_defaults: bool) -> None:
-    """One option per declared setting of ``cls`` with a flag; its default is None, so an absent option
-    leaves the dataclass default (or, for the config, the preset's value) in place."""
+def _add_settings(parser: argparse.ArgumentParser, cls: type, show_defaults: bool, exclude=()) -> None:
+    """One option per declared setting of ``cls`` with a flag (but those named in ``exclude``); its default is
+    None, so an absent option leaves the dataclass default (or, for the config, the preset's value) in place."""
     for s in declared(cls):
-        if s.flag is not None:
+        if s.flag is not None and s.name not in exclude:
             extra = {"metavar": s.metavar} if s.metavar else {}
             parser.add_argument(s.flag, dest=s.name, default=None, help=_help(s, show_defaults),
                                 **_argparse_type(s), **extra)
@@ -191,12 +191,102 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--gpus", type=float, default=0.0, metavar="G",
                        help="GPUs the Ray trainer's workers share, G/W each for W workers (default 0: CPU workers)")
 
+    _add_experiment_parsers(sub)
+
     plot = sub.add_parser("plot", help="learning curves of one or more runs as a PNG")
     plot.add_argument("run_dirs", nargs="+")
     plot.add_argument("--out", required=True)
     plot.add_argument("--labels", help="comma-separated, one per run dir")
     plot.add_argument("--title", default=None)
     return parser
+
+
+# The experiment's grid axes: every trial gets its own; the other Config settings apply to all trials.
+_GRID_FIELDS = ("env", "method", "seed", "env_args")
+
+
+def _env_scoped_arg(text: str) -> tuple[str, tuple[str, object]]:
+    """ENV:KEY=VALUE, an environment parameter for one environment of an experiment."""
+    env, sep, pair = text.partition(":")
+    if not sep or not env:
+        raise argparse.ArgumentTypeError(f"expected ENV:KEY=VALUE, got {text!r}")
+    return env, _env_arg(pair)
+
+
+def _add_experiment_parsers(sub) -> None:
+    from pizero_ray.config import METHODS
+
+    experiment = sub.add_parser(
+        "experiment", help="train every (env, method, seed) for the same wall-clock budget on Ray Tune; "
+                           "run it again to resume an interrupted experiment")
+    experiment.add_argument("--envs", type=_comma_list, required=True, help="comma-separated environments")
+    experiment.add_argument("--methods", type=_comma_list, default=METHODS,
+                            help=f"comma-separated methods (default {','.join(METHODS)})")
+    experiment.add_argument("--seeds", type=_positive_int, default=5, help="independent runs each (default 5)")
+    experiment.add_argument("--budget-minutes", type=float, required=True,
+                            help="training wall-clock per run (evaluations excluded)")
+    experiment.add_argument("--eval-every-minutes", type=float, default=None,
+                            help="evaluate at every multiple of this on each run's clock (default: budget / 5)")
+    experiment.add_argument("--cpus-per-trial", type=_positive_int, default=2,
+                            help="CPUs each run holds: ES workers, or a baseline's process (default 2)")
+    experiment.add_argument("--out", required=True, help="the experiment's directory (run dirs, Tune's state)")
+    experiment.add_argument("--env-arg", dest="env_scoped_args", action="append", type=_env_scoped_arg,
+                            default=[], metavar="ENV:KEY=VALUE", help="a parameter of one environment, repeatable")
+    experiment.add_argument("--eval-env-arg", dest="eval_env_scoped_args", action="append", type=_env_scoped_arg,
+                            default=[], metavar="ENV:KEY=VALUE",
+                            help="evaluate that environment with this parameter changed (e.g. sokoban:levels=PATH)")
+    experiment.add_argument("--eval-episodes", type=_positive_int, default=256, help="episodes per evaluation")
+    experiment.add_argument("--address", default=None, help="Ray cluster address (default: a local instance)")
+    experiment.add_argument("--compile-cache", default=None, help="JAX persistent compile cache dir, or 'none'")
+    experiment.add_argument("--preset", default="default", help=f"one of {', '.join(PRESETS)}, for every trial")
+    _add_settings(experiment, Config, show_defaults=False, exclude=_GRID_FIELDS)
+
+    report = sub.add_parser("plot-experiment", help="an experiment's results figure, table and states figure")
+    report.add_argument("experiment_dir")
+    report.add_argument("--out", required=True, help="directory for results.png, results_table.md, results.json")
+
+
+def _scoped(pairs) -> tuple:
+    """[(env, (key, value))] -> ((env, ((key, value), ...)), ...), sorted."""
+    by_env: dict[str, dict] = {}
+    for env, (key, value) in pairs:
+        by_env.setdefault(env, {})[key] = value
+    return tuple(sorted((env, tuple(sorted(values.items()))) for env, values in by_env.items()))
+
+
+def _cmd_experiment(args) -> int:
+    from pizero_ray.experiment import grid, runner
+
+    overrides = {name: value for name, value in _given(Config, args).items() if name not in _GRID_FIELDS}
+    if args.budget_minutes <= 0:
+        raise UsageError(f"--budget-minutes must be positive, got {args.budget_minutes:g}")
+    experiment = grid.Experiment(
+        envs=args.envs, methods=args.methods, seeds=args.seeds, budget_minutes=args.budget_minutes,
+        eval_every_minutes=args.eval_every_minutes or args.budget_minutes / 5, eval_episodes=args.eval_episodes,
+        cpus_per_trial=args.cpus_per_trial, preset=args.preset, overrides=tuple(sorted(overrides.items())),
+        env_args=_scoped(args.env_scoped_args), eval_env_args=_scoped(args.eval_env_scoped_args))
+    grid.check(experiment)  # every trial's config and environment, before anything starts
+    out = rundir.resolve(args.out)
+    summary = runner.run(out, experiment, address=args.address, compile_cache=args.compile_cache)
+    runner.write_summary(out, summary)
+    print(json.dumps(summary))
+    missing = [name for name, final in summary["trials"].items() if final is None]
+    if missing:
+        print(f"pizero: {len(missing)} trials have no result ({', '.join(missing[:4])}...); run the same command "
+              "again to resume them", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _cmd_plot_experiment(args) -> int:
+    from pizero_ray.experiment import grid, report
+
+    out = rundir.resolve(args.experiment_dir)
+    grid.read_spec(out)  # a one-line error for a directory that holds no experiment
+    summary = report.write_report(out, Path(args.out))
+    done = {(row["env"], row["method"]) for row in summary["results"]}
+    print(json.dumps({"out": args.out, "results": len(done)}))
+    return 0
 
 
 def _train_config(args):
@@ -440,6 +530,7 @@ def _cmd_plot(args) -> int:
 COMMANDS = {
     "train": _cmd_train, "resume": _cmd_resume, "eval": _cmd_eval, "inspect": _cmd_inspect,
     "render": _cmd_render, "plot": _cmd_plot, "chaos": _cmd_chaos, "bench": _cmd_bench,
+    "experiment": _cmd_experiment, "plot-experiment": _cmd_plot_experiment,
 }
 
 

@@ -54,6 +54,22 @@ def initial_state(config: Config, env):
     return strategy.init(theta), layout, strategy
 
 
+def other_env(config: Config, trained_env: Environment, env_args: dict | None) -> Environment:
+    """The run's environment with ``env_args`` changed (other levels, say), or ``trained_env`` without any.
+
+    A different horizon is fine (longer games); different shapes are not: the trained agent could not act.
+    """
+    if not env_args:
+        return trained_env
+    try:
+        env = make_env(config, **env_args)
+    except ValueError as error:
+        raise ConfigError(str(error)) from None
+    if env.spec._replace(horizon=0) != trained_env.spec._replace(horizon=0):
+        raise ConfigError(f"env args {env_args} change the environment's shapes: the trained agent cannot act")
+    return env
+
+
 def acting_agent(config: Config, env: Environment, method=None):
     """The agent that plays a run's episodes (``method``: initial_state's third value, if at hand)."""
     if config.gradient_trained:
@@ -108,15 +124,7 @@ def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
     trained_env = make_env(config)
     state, layout, method = initial_state(config, trained_env)
     theta, opt_state = np.asarray(state.theta), state.opt_state
-    env = trained_env
-    if env_args:
-        try:
-            env = make_env(config, **env_args)
-        except ValueError as error:
-            raise ConfigError(str(error)) from None
-        # A different horizon is fine (longer games, say); different shapes are not.
-        if env.spec._replace(horizon=0) != trained_env.spec._replace(horizon=0):
-            raise ConfigError(f"env args {env_args} change the environment's shapes: the trained agent cannot act")
+    env = other_env(config, trained_env, env_args)
     agent = acting_agent(config, env, method if env is trained_env else None)
     restored = checkpoints.restore_latest(run_path, theta, opt_state)
     if restored is None:

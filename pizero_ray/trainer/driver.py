@@ -15,6 +15,7 @@ SIGINT.
 from __future__ import annotations
 
 import functools
+import math
 import signal
 import threading
 import time
@@ -73,9 +74,10 @@ class _Run:
         self.state, self.metrics = runs.restore(run_path, state, restart=options.restart)
         self.start_iteration = self.state.iteration
         self.evaluator = None
-        if options.eval_every > 0:
-            agent = runs.acting_agent(config, env, self.strategy)
-            self.evaluator = episodes.make_evaluator(agent, env, self.layout.unravel, options.eval_episodes)
+        if options.eval_every > 0 or options.eval_every_minutes is not None:
+            eval_env = runs.other_env(config, env, dict(options.eval_env_args))
+            agent = runs.acting_agent(config, eval_env, self.strategy if eval_env is env else None)
+            self.evaluator = episodes.make_evaluator(agent, eval_env, self.layout.unravel, options.eval_episodes)
         # The gradient-trained baselines learn in this process; ES farms its population out to the pool.
         self.pool = None if config.gradient_trained else WorkerPool(config, options.pool)
         self.writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)
@@ -84,6 +86,7 @@ class _Run:
         self.wall_offset = self.metrics[-1]["wall_time_s"] if self.metrics else 0.0
         self.started = time.time()
         self.evaluating_s = 0.0  # the learning curve's evaluations are measurement, not training time
+        self.next_eval_s = _next_multiple(self.wall_offset, options.eval_every_minutes)
 
     def save(self) -> None:
         runs.save(self.writer, self.config, self.state)
@@ -168,11 +171,17 @@ class _Run:
     def record(self, row: dict) -> None:
         """Evaluates if due (and after the last iteration), writes the row, checkpoints if due."""
         iteration, options = row["iteration"], self.options
-        if self.evaluator is not None and (iteration % options.eval_every == 0 or self.done()):
+        if self.evaluator is not None and (self.eval_due(iteration) or self.done()):
             row["eval_mean_score"] = self.evaluate()
+            self.next_eval_s = _next_multiple(row["wall_time_s"], options.eval_every_minutes)
         self.write(row)
         if options.checkpoint_every > 0 and iteration % options.checkpoint_every == 0:
             self.save()
+
+    def eval_due(self, iteration: int) -> bool:
+        """Every ``eval_every`` iterations, and each time training time passes an ``eval_every_minutes`` mark."""
+        every = self.options.eval_every
+        return (every > 0 and iteration % every == 0) or self.wall_time_s() >= self.next_eval_s
 
     def write(self, row: dict) -> None:
         self.log.write(row)  # the source of truth first
@@ -184,6 +193,14 @@ class _Run:
         self.writer.close()
         if self.pool is not None:
             self.pool.shutdown()
+
+
+def _next_multiple(seconds: float, every_minutes: float | None) -> float:
+    """The first multiple of ``every_minutes`` (in seconds) after ``seconds``; infinity without one."""
+    if every_minutes is None:
+        return float("inf")
+    every = 60.0 * every_minutes
+    return (math.floor(seconds / every) + 1) * every
 
 
 def _score_stats(stats) -> dict:

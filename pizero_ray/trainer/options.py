@@ -88,7 +88,15 @@ class RunOptions:
     keep_checkpoints: int = setting(3, flag="--keep-checkpoints", minimum=1, help="newest checkpoints kept")
     eval_every: int = setting(0, flag="--eval-every", minimum=0,
                               help="evaluate the unperturbed agent every K iterations (0: never)")
+    eval_every_minutes: float | None = setting(
+        None, flag="--eval-every-minutes",
+        help="also evaluate each time the training wall-clock passes a multiple of this many minutes "
+             "(learning curves at equal time points, whatever an iteration costs)")
     eval_episodes: int = setting(256, flag="--eval-episodes", minimum=1, help="episodes per evaluation")
+    eval_env_args: tuple[tuple[str, Any], ...] = setting(
+        (), flag="--eval-env-arg", metavar="KEY=VALUE",
+        help="evaluate the learning curve on the environment with this parameter changed (repeatable), "
+             "e.g. levels=PATH: train on one level set, report on another")
     restart: bool = False  # start over at iteration 0 though the run dir holds progress (checkpoints.prepare_resume)
 
     def __post_init__(self) -> None:
@@ -101,6 +109,8 @@ class RunOptions:
             raise ConfigError("give --iterations N (the total to reach), --minutes M (a wall-clock budget) or both")
         if self.minutes is not None and not self.minutes > 0:
             raise ConfigError(f"--minutes must be positive, got {self.minutes}")
+        if self.eval_every_minutes is not None and not self.eval_every_minutes > 0:
+            raise ConfigError(f"--eval-every-minutes must be positive, got {self.eval_every_minutes}")
         self.pool.validate()
         return self
 
@@ -111,5 +121,7 @@ class RunOptions:
         unknown = set(values) - pool_fields - {f.name for f in dataclasses.fields(cls)}
         if unknown:
             raise TypeError(f"RunOptions has no option {', '.join(sorted(unknown))}")
+        if isinstance(values.get("eval_env_args"), dict):  # KEY=VALUE pairs from the command line
+            values["eval_env_args"] = tuple(sorted(values["eval_env_args"].items()))
         pool = PoolOptions(**{k: v for k, v in values.items() if k in pool_fields})
         return cls(pool=pool, **{k: v for k, v in values.items() if k not in pool_fields})
