@@ -1,4 +1,4 @@
-"""`pizero render`: legible, captioned frames whose score is the evaluated episode's.
+"""`pizero render` and the states figure: legible, captioned frames whose score is the evaluated episode's.
 
 The runs are untrained (a config and no checkpoint: the initial parameters),
 with the cheapest agent to compile; nothing is trained here.
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from pizero_ray.cli import caption, main, render
+from pizero_ray.cli import caption, main, render, states
 from pizero_ray.cli.evaluate import evaluate_run
-from pizero_ray.config import build_config
+from pizero_ray.config import ConfigError, build_config
 from pizero_ray.storage import run_dir
 
 
@@ -98,3 +98,34 @@ def test_every_gif_frame_is_captioned_at_one_size(runs, tmp_path):
             image.seek(index)
             sizes.add(image.size)
         assert len(sizes) == 1
+
+
+def test_states_figure_draws_one_panel_per_environment(runs, tmp_path):
+    out = states.states_figure(runs, tmp_path / "figs" / "states.png", seed=1)
+    with Image.open(out) as image:
+        width, height = image.size
+    inches = states.PANEL_INCHES
+    assert (width, height) == (round(2 * inches[0] * states.DPI), round(inches[1] * states.DPI))  # 1 row, 2 panels
+    panel = states.final_state_panel("collect", runs["collect"], seed=1)
+    evaluated = evaluate_run(runs["collect"], episodes=1, seed=1)["mean_score"]
+    assert panel.title == "Collect" and panel.notes == [f"score {caption.format_score(evaluated)}"]
+
+
+@pytest.mark.parametrize("count, shape", [(1, (1, 1)), (2, (1, 2)), (3, (1, 3)), (4, (2, 2)), (5, (2, 3)), (6, (2, 3))])
+def test_grid_shape(count, shape):
+    assert states.grid_shape(count) == shape
+
+
+def test_states_figure_bad_inputs_are_one_line_errors(runs, tmp_path):
+    cases = [
+        ({f"env{i}": runs["tsp"] for i in range(7)}, "states.png", "takes 1..6 environments, got 7"),
+        ({}, "states.png", "got 0"),
+        ({"tsp": runs["collect"]}, "states.png", f"run dir {runs['collect']} is a 'collect' run, not 'tsp'"),
+        ({"tsp": tmp_path / "nowhere"}, "states.png", "nowhere does not exist"),
+        ({"tsp": runs["tsp"]}, "states.pdf", "the states figure is a .png, got"),
+    ]
+    for run_paths, name, message in cases:
+        with pytest.raises(ConfigError, match=message) as error:
+            states.states_figure(run_paths, tmp_path / name)
+        assert "\n" not in str(error.value)
+    assert not list(tmp_path.glob("states.*"))
