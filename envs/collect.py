@@ -118,7 +118,7 @@ def make(num_coins: int = 12, horizon: int = 20, size: int = 8) -> Environment:
     )
     return Environment(
         "collect", spec, reset, step,
-        render=functools.partial(render, horizon=horizon),
+        render=render,
         references=functools.partial(references, step=step, horizon=horizon, num_coins=num_coins),
     )
 
@@ -208,8 +208,9 @@ def references(initial_states: CollectState, scores: np.ndarray, *, step, horizo
 
 # ---------------------------------------------------------------- rendering
 
-CELL = 40
-HEADER = 24
+CELL = 64
+HEADER = 30
+HEADER_FONT_SIZE = 18
 WALL_COLOUR = (60, 60, 70)
 FLOOR_COLOUR = (235, 235, 225)
 GRID_COLOUR = (200, 200, 190)
@@ -218,9 +219,9 @@ COIN_EDGE = (170, 130, 0)
 AGENT_COLOUR = (40, 110, 220)
 
 
-def render(state: CollectState, horizon: int = 20) -> np.ndarray:
-    """The grid (walls dark), coins as yellow circles, the agent as a blue disc, the step counter above."""
-    from PIL import Image, ImageDraw
+def render(state: CollectState) -> np.ndarray:
+    """The grid (walls dark), coins as yellow circles, the agent as a blue disc, the coins left above."""
+    from PIL import Image, ImageDraw, ImageFont
 
     coins = np.asarray(state.coins)
     size = coins.shape[0]
@@ -239,5 +240,5 @@ def render(state: CollectState, horizon: int = 20) -> np.ndarray:
     r, c = np.asarray(state.agent).tolist()
     x, y, pad = c * CELL, HEADER + r * CELL, CELL // 8
     draw.ellipse((x + pad, y + pad, x + CELL - pad, y + CELL - pad), fill=AGENT_COLOUR)
-    draw.text((6, 6), f"Collect  step {int(state.t)}/{horizon}  coins left {int(coins.sum())}", fill="black")
+    draw.text((8, 5), f"coins left {int(coins.sum())}", fill="black", font=ImageFont.load_default(HEADER_FONT_SIZE))
     return np.asarray(image)

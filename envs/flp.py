@@ -228,16 +228,17 @@ def references(initial_states: FLPState, scores: np.ndarray, *, objective: str) 
 
 # ---------------------------------------------------------------- rendering
 
-SIZE = 360
-MARGIN = 20
+SIZE = 560
+MARGIN = 28
 CLIENT_COLOUR = (90, 90, 90)
 FACILITY_COLOUR = (220, 60, 40)
-LINK_COLOUR = (150, 180, 230)
+LINK_COLOUR = (120, 160, 225)
 RADIUS_COLOUR = (240, 150, 130)
 
 
 def render(state: FLPState, objective: str = "max") -> np.ndarray:
-    """Clients as dots, facilities as squares, each client's link to its nearest facility.
+    """As the paper draws a placement: clients as dots, facilities as squares, a line from each
+    client to its assigned (nearest) facility.
 
     For max, also the covering radius: a circle of that radius around every
     facility, and the link of the client that sets it.
@@ -246,36 +247,29 @@ def render(state: FLPState, objective: str = "max") -> np.ndarray:
 
     clients = np.asarray(state.clients, dtype=np.float64)
     facilities = np.asarray(state.facilities, dtype=np.float64)
-    t, m = int(state.t), facilities.shape[0]
+    placed = facilities[:int(state.t)]
     scale = SIZE - 2 * MARGIN
     to_pixels = lambda xy: (MARGIN + xy[0] * scale, SIZE - MARGIN - xy[1] * scale)
     image = Image.new("RGB", (SIZE, SIZE), "white")
     draw = ImageDraw.Draw(image)
     draw.rectangle((MARGIN, MARGIN, SIZE - MARGIN, SIZE - MARGIN), outline=(210, 210, 210))
-    label = f"FLP {objective}  step {t}/{m}"
-    if t > 0:
-        placed = facilities[:t]
+    if len(placed):
         distances = np.linalg.norm(clients[:, None] - placed[None], axis=-1)
         nearest = distances.argmin(axis=1)
-        to_nearest = distances.min(axis=1)
         for client, facility in zip(clients, nearest):
-            draw.line([to_pixels(client), to_pixels(placed[facility])], fill=LINK_COLOUR, width=1)
+            draw.line([to_pixels(client), to_pixels(placed[facility])], fill=LINK_COLOUR, width=2)
         if objective == "max":
-            critical = to_nearest.argmax()  # the client that sets the radius
+            critical = distances.min(axis=1).argmax()  # the client that sets the radius
             draw.line([to_pixels(clients[critical]), to_pixels(placed[nearest[critical]])], fill=RADIUS_COLOUR,
-                      width=2)
-            radius = to_nearest.max() * scale
+                      width=3)
+            radius = distances.min(axis=1).max() * scale
             for facility in placed:
                 x, y = to_pixels(facility)
-                draw.ellipse((x - radius, y - radius, x + radius, y + radius), outline=RADIUS_COLOUR, width=1)
-            label += f"  radius {to_nearest.max():.3f}"
-        else:
-            label += f"  mean distance {to_nearest.mean():.3f}"
+                draw.ellipse((x - radius, y - radius, x + radius, y + radius), outline=RADIUS_COLOUR, width=2)
     for client in clients:
         x, y = to_pixels(client)
-        draw.ellipse((x - 3, y - 3, x + 3, y + 3), fill=CLIENT_COLOUR)
-    for facility in facilities[:t]:
+        draw.ellipse((x - 5, y - 5, x + 5, y + 5), fill=CLIENT_COLOUR)
+    for facility in placed:
         x, y = to_pixels(facility)
-        draw.rectangle((x - 6, y - 6, x + 6, y + 6), fill=FACILITY_COLOUR)
-    draw.text((6, 4), label, fill="black")
+        draw.rectangle((x - 9, y - 9, x + 9, y + 9), fill=FACILITY_COLOUR)
     return np.asarray(image)

@@ -195,8 +195,8 @@ _BOARD_COLOUR = (187, 173, 160)
 _DARK_TEXT, _LIGHT_TEXT = (119, 110, 101), (249, 246, 242)
 
 
-def render(state: Game2048State, tile: int = 88, gap: int = 10) -> np.ndarray:
-    """The board like the game: coloured tiles with their numbers, the score and move count above."""
+def render(state: Game2048State, tile: int = 120, gap: int = 12) -> np.ndarray:
+    """The board like the game: coloured tiles with their numbers, the highest tile above."""
     from PIL import Image, ImageDraw, ImageFont
 
     board = np.asarray(state.game.board)
@@ -205,11 +205,8 @@ def render(state: Game2048State, tile: int = 88, gap: int = 10) -> np.ndarray:
     side = n * tile + (n + 1) * gap
     image = Image.new("RGB", (side, side + header), (250, 248, 239))
     draw = ImageDraw.Draw(image)
-    font_header = ImageFont.load_default(size=18)
-    score = int(np.asarray(state.game.score))
     top = int(2 ** board.max()) if board.max() > 0 else 0
-    moves = int(np.asarray(state.game.step_count))
-    draw.text((gap, 12), f"2048  score {score}  top {top}  move {moves}", fill=_DARK_TEXT, font=font_header)
+    draw.text((gap, 10), f"highest tile {top}", fill=_DARK_TEXT, font=ImageFont.load_default(size=22))
     draw.rounded_rectangle((0, header, side - 1, side + header - 1), radius=8, fill=_BOARD_COLOUR)
     for row in range(n):
         for col in range(n):

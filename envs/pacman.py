@@ -327,10 +327,15 @@ def reference_scores(env: Environment, episodes: int = 1000, seed: int = 0) -> d
 
 # ---------------------------------------------------------------- rendering
 
+HEADER_FONT_SIZE = 14
+
 
 def render(maze: Maze, window_size: int | None, state: PacManState, cell: int = 12) -> np.ndarray:
-    """The maze, pellets, power pellets, ghosts and player; for pacman-po the visible window's outline."""
-    from PIL import Image, ImageDraw
+    """The maze, pellets, power pellets, ghosts and player; for pacman-po the visible window's outline.
+
+    Above the maze: the pellets left, and whether the player is caught or the ghosts frightened.
+    """
+    from PIL import Image, ImageDraw, ImageFont
 
     game = state.game
     rows, cols = maze.shape
@@ -370,7 +375,6 @@ def render(maze: Maze, window_size: int | None, state: PacManState, cell: int = 
         draw.rectangle((max(x0, 0), max(y0, header), min(x1, width - 1), min(y1, height - 1)),
                        outline=(60, 255, 90), width=2)
     status = "caught" if bool(np.asarray(game.dead)) else ("frightened" if frightened else "")
-    text = f"{'PO-' if window_size else ''}Pac-Man  score {int(np.asarray(game.score))}  " \
-           f"step {int(np.asarray(game.step_count))}  {status}"
-    draw.text((4, 5), text, fill="white")
+    draw.text((4, 3), f"pellets left {int(pellets.sum())}  {status}", fill="white",
+              font=ImageFont.load_default(HEADER_FONT_SIZE))
     return np.asarray(image)

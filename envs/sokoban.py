@@ -163,7 +163,7 @@ def make(
         spec,
         reset,
         step,
-        render=functools.partial(render, horizon=horizon),
+        render=render,
         references=functools.partial(references, random_agent=_random_agent(step, horizon)),
     )
 
@@ -227,6 +227,7 @@ def references(initial_states: SokobanState, scores: np.ndarray, *, random_agent
 
 TILE = 32
 HEADER = 22
+HEADER_FONT_SIZE = 14
 COLOURS = {
     "wall": (92, 64, 51),
     "wall_edge": (60, 40, 32),
@@ -242,9 +243,9 @@ COLOURS = {
 }
 
 
-def render(state: SokobanState, horizon: int = DEFAULT_HORIZON) -> np.ndarray:
-    """One unbatched state as an RGB image: walls, floor, goals, boxes (green on a goal), player, step counter."""
-    from PIL import Image, ImageDraw
+def render(state: SokobanState) -> np.ndarray:
+    """One unbatched state as an RGB image: walls, floor, goals, boxes (green on a goal), player, goals covered."""
+    from PIL import Image, ImageDraw, ImageFont
 
     walls, goals, boxes = (np.asarray(x, dtype=bool) for x in (state.walls, state.goals, state.boxes))
     player = tuple(np.asarray(state.player).tolist())
@@ -279,8 +280,8 @@ def render(state: SokobanState, horizon: int = DEFAULT_HORIZON) -> np.ndarray:
                              fill=COLOURS["player"])
     covered, total = int((boxes & goals).sum()), int(boxes.sum())
     status = "  solved" if covered == total else ""
-    draw.text((6, 5), f"step {int(state.t)}/{horizon}  goals {covered}/{total}{status}  level {int(state.level)}",
-              fill=COLOURS["text"])
+    draw.text((6, 3), f"goals {covered}/{total}{status}  level {int(state.level)}", fill=COLOURS["text"],
+              font=ImageFont.load_default(HEADER_FONT_SIZE))
     return np.asarray(image)
 
 

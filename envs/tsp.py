@@ -136,33 +136,55 @@ def references(initial_states: TSPState, scores: np.ndarray) -> dict[str, float]
     return out
 
 
-def render(state: TSPState, size: int = 320) -> np.ndarray:
-    """Cities as dots, the tour placed so far as a path (closed once complete)."""
+# ---------------------------------------------------------------- rendering
+
+RENDER_SIZE = 560
+TOUR_COLOUR = (40, 90, 200)
+CITY_COLOUR = (30, 30, 30)  # the edge of every city and the fill of the first
+CURRENT_COLOUR = (220, 60, 40)
+BORDER_COLOUR = (210, 210, 210)
+
+
+def placed_path_length(state: TSPState) -> float:
+    """Length of the tour placed so far: the open path through positions < t, closed once all are placed."""
+    coordinates = np.asarray(state.coordinates, dtype=np.float64)
+    tour, t = np.asarray(state.tour), int(state.t)
+    path = coordinates[tour[:t]]
+    if t == len(tour):
+        path = np.concatenate([path, path[:1]])
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=-1).sum())
+
+
+def render(state: TSPState, size: int = RENDER_SIZE) -> np.ndarray:
+    """As the paper draws a tour: the first city filled, the others hollow, the tour so far as lines.
+
+    The tour closes once complete; mid-episode a ring marks the city placed last.
+    """
     from PIL import Image, ImageDraw
 
-    margin = 16
+    margin, radius, width = size // 20, max(3, size // 70), max(2, size // 160)
     coordinates = np.asarray(state.coordinates)
     tour = np.asarray(state.tour)
-    t = int(state.t)
-    n = len(tour)
+    t, n = int(state.t), len(tour)
     to_pixels = lambda xy: (margin + xy[0] * (size - 2 * margin), size - margin - xy[1] * (size - 2 * margin))
     image = Image.new("RGB", (size, size), "white")
     draw = ImageDraw.Draw(image)
+    draw.rectangle((margin, margin, size - margin, size - margin), outline=BORDER_COLOUR)
     path = [to_pixels(coordinates[city]) for city in tour[:t]]
     if t == n:
         path.append(path[0])
     if len(path) > 1:
-        draw.line(path, fill=(40, 90, 200), width=3)
-    placed = set(tour[:t].tolist())
+        draw.line(path, fill=TOUR_COLOUR, width=width, joint="curve")
     for city, xy in enumerate(coordinates):
         x, y = to_pixels(xy)
-        colour = (40, 90, 200) if city in placed else (150, 150, 150)
-        draw.ellipse((x - 5, y - 5, x + 5, y + 5), fill=colour)
+        first = t > 0 and city == tour[0]
+        draw.ellipse((x - radius, y - radius, x + radius, y + radius), fill=CITY_COLOUR if first else "white",
+                     outline=CITY_COLOUR, width=width)
     if 0 < t < n:
-        x, y = to_pixels(coordinates[tour[t - 1]])
-        draw.ellipse((x - 8, y - 8, x + 8, y + 8), outline=(220, 60, 40), width=3)
-    draw.text((6, 2), f"TSP{n}  step {t}/{n}", fill="black")
+        x, y, ring = *to_pixels(coordinates[tour[t - 1]]), 2 * radius
+        draw.ellipse((x - ring, y - ring, x + ring, y + ring), outline=CURRENT_COLOUR, width=width)
     return np.asarray(image)
+
 
 # ---------------------------------------------------------------- reference solvers
 

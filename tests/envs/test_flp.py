@@ -173,6 +173,18 @@ def test_render_draws_clients_facilities_and_the_radius():
     assert flp.FACILITY_COLOUR not in colours(env_max.render(env_max.reset(jax.random.PRNGKey(3))[0]))
 
 
+def test_render_joins_each_client_to_its_nearest_facility():
+    clients = [(0.1, 0.1), (0.1, 0.3), (0.9, 0.9), (0.7, 0.8)]
+    state = FLPState(jnp.asarray(clients), jnp.asarray([(0.2, 0.2), (0.8, 0.8)]), jnp.int32(2))
+    image = flp.render(state, objective="mean")
+    scale = flp.SIZE - 2 * flp.MARGIN
+    pixel = lambda xy: tuple(image[round(flp.SIZE - flp.MARGIN - xy[1] * scale), round(flp.MARGIN + xy[0] * scale)])
+    between = lambda a, b, f: (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]))
+    for client, facility in zip(clients, [(0.2, 0.2), (0.2, 0.2), (0.8, 0.8), (0.8, 0.8)]):
+        assert {pixel(between(client, facility, f)) for f in (0.4, 0.5, 0.6)} == {flp.LINK_COLOUR}
+    assert pixel(between(clients[0], (0.8, 0.8), 0.5)) == (255, 255, 255)  # no link to the farther facility
+
+
 @pytest.mark.parametrize(
     "name, args, named",
     [

@@ -135,3 +135,36 @@ def test_paper_features_are_each_citys_coordinates_and_placed_flag_only(tsp_env)
     placed = np.asarray(obs.action_features[:, 2])
     assert list(np.flatnonzero(placed)) == [2, 6] and list(np.flatnonzero(~np.asarray(obs.action_mask))) == [2, 6]
     np.testing.assert_array_equal(np.asarray(obs.action_features[:, 2]), np.asarray(rich.action_features[:, 9]))
+
+
+def _drawn_cities(t):
+    """Cities at the corners of a square, tour 2, 0, 3, 1 placed up to position ``t``."""
+    coordinates = np.array([[0.8, 0.2], [0.8, 0.8], [0.2, 0.2], [0.2, 0.8]], np.float32)
+    return tsp.TSPState(coordinates, np.array([2, 0, 3, 1], np.int32), np.int32(t))
+
+
+def _pixel(image, x, y):
+    size = image.shape[0]
+    margin = size // 20
+    return tuple(image[round(size - margin - y * (size - 2 * margin)), round(margin + x * (size - 2 * margin))])
+
+
+def test_render_fills_the_first_city_and_draws_the_tour_as_lines():
+    white = (255, 255, 255)
+    image = tsp.render(_drawn_cities(3), size=200)
+    assert image.shape == (200, 200, 3) and image.dtype == np.uint8
+    assert _pixel(image, 0.2, 0.2) == tsp.CITY_COLOUR  # city 2, the first: filled
+    assert _pixel(image, 0.8, 0.2) == _pixel(image, 0.2, 0.8) == _pixel(image, 0.8, 0.8) == white  # others hollow
+    assert _pixel(image, 0.5, 0.2) == _pixel(image, 0.35, 0.65) == tsp.TOUR_COLOUR  # 2 -> 0 -> 3
+    assert _pixel(image, 0.5, 0.8) == _pixel(image, 0.35, 0.35) == white  # 3 -> 1 -> 2: not yet
+    closed = tsp.render(_drawn_cities(4), size=200)
+    assert _pixel(closed, 0.5, 0.8) == _pixel(closed, 0.35, 0.35) == tsp.TOUR_COLOUR
+    assert _pixel(tsp.render(_drawn_cities(0), size=200), 0.2, 0.2) == white  # no first city before one is placed
+
+
+def test_placed_path_length_is_open_until_the_tour_closes():
+    side, diagonal = 0.6, np.hypot(0.6, 0.6)
+    assert tsp.placed_path_length(_drawn_cities(0)) == 0.0
+    assert tsp.placed_path_length(_drawn_cities(3)) == pytest.approx(side + diagonal)
+    assert tsp.placed_path_length(_drawn_cities(4)) == pytest.approx(2 * side + 2 * diagonal)
+    assert tsp.placed_path_length(_drawn_cities(4)) == pytest.approx(float(tsp.tour_length(*_drawn_cities(4)[:2])))
