@@ -282,10 +282,14 @@ def _cmd_plot_experiment(args) -> int:
     from pizero_ray.experiment import grid, report
 
     out = rundir.resolve(args.experiment_dir)
-    grid.read_spec(out)  # a one-line error for a directory that holds no experiment
+    experiment = grid.read_spec(out)
     summary = report.write_report(out, Path(args.out))
-    done = {(row["env"], row["method"]) for row in summary["results"]}
-    print(json.dumps({"out": args.out, "results": len(done)}))
+    shown = report.state_runs(out, experiment)
+    if shown:
+        from pizero_ray.cli.states import states_figure
+
+        states_figure(shown, Path(args.out) / "states.png")
+    print(json.dumps({"out": args.out, "results": len(summary["results"]), "states": sorted(shown)}))
     return 0
 
 

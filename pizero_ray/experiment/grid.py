@@ -77,8 +77,10 @@ class Experiment:
 
     @property
     def trials(self) -> list[Trial]:
-        return [Trial(env, method, seed) for env in self.envs for method in self.methods
-                for seed in range(self.seeds)]
+        """Seed-major: every (env, method) gets seed 0 before any gets seed 1. An experiment cut short still
+        covers the whole grid, and later seeds find their programs in the compile cache."""
+        return [Trial(env, method, seed) for seed in range(self.seeds) for env in self.envs
+                for method in self.methods]
 
     def config(self, trial: Trial) -> Config:
         """The trial's configuration: the preset, the overrides, its env's parameters, its method and seed."""

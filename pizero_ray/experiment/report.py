@@ -19,6 +19,7 @@ import numpy as np
 from pizero_ray.experiment import bands, grid
 
 REFERENCES_FILE = "references.json"
+VARIANT_OF = {"flp-mean": "flp", "pacman-po": "pacman"}  # drawn alike: the states figure shows one of each
 METHOD_LABELS = {"pizero": "PiZero (ES + planner)", "es": "ES, no planner", "alphazero": "AlphaZero (simulator)",
                  "muzero": "MuZero (learned model)"}
 
@@ -158,6 +159,22 @@ def results_figure(out: Path, experiment: grid.Experiment, png: Path) -> None:
     png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png, dpi=110)
     plt.close(fig)
+
+
+def state_runs(out: Path, experiment: grid.Experiment, limit: int = 6) -> dict[str, Path]:
+    """env -> the run whose agent the states figure shows: seed 0 of the first method listed that has one.
+
+    One panel per family of environments: flp-mean and pacman-po only where flp or pacman is not in the grid.
+    """
+    shown = {}
+    envs = [env for env in experiment.envs if VARIANT_OF.get(env) not in experiment.envs]
+    for env in envs[:limit]:
+        for method in experiment.methods:
+            path = grid.run_path(out, grid.Trial(env, method, 0))
+            if path.exists():
+                shown[env] = path
+                break
+    return shown
 
 
 def write_report(out: Path, docs: Path) -> dict:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import warnings
 
 # Small enough for a 2-core CI box; only parameters (KBs to MBs) live there.
 LOCAL_OBJECT_STORE_BYTES = 256 * 1024 * 1024
@@ -25,6 +26,17 @@ def init(address: str | None = None, num_cpus: int | None = None) -> str:
         # or ~/.ray/auth_token; see cluster/README.md.
         ray.init(address=address, log_to_driver=True, logging_level="WARNING")
         return f"Ray cluster at {address}"
+    with warnings.catch_warnings():
+        # JAX warns at any fork once its threads run (an experiment has built its environments by now); Ray's
+        # fork is subprocess's fork-and-exec of its own binaries, which runs no JAX code in the child.
+        warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called", category=RuntimeWarning)
+        _init_local(num_cpus)
+    return "local Ray instance"
+
+
+def _init_local(num_cpus: int | None) -> None:
+    import ray
+
     ray.init(
         address="local",  # a new instance even if another Ray runs on this machine: join one only when asked
         num_cpus=num_cpus or os.cpu_count(),
@@ -32,4 +44,3 @@ def init(address: str | None = None, num_cpus: int | None = None) -> str:
         include_dashboard=False,
         logging_level="WARNING",
     )
-    return "local Ray instance"

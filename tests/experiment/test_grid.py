@@ -1,0 +1,71 @@
+"""The experiment's grid: its trials, each trial's configuration and options, its spec file, bad input."""
+
+import json
+
+import pytest
+
+from pizero_ray.cli import main
+from pizero_ray.config import ConfigError
+from pizero_ray.experiment import grid
+
+
+def _experiment(**changes):
+    values = dict(envs=("tsp", "sokoban"), methods=("pizero", "alphazero"), seeds=2, budget_minutes=5.0,
+                  eval_every_minutes=1.0, preset="tiny", overrides=(("population", 8),),
+                  env_args=(("sokoban", (("levels", "A"),)),), eval_env_args=(("sokoban", (("levels", "B"),)),))
+    return grid.Experiment(**{**values, **changes})
+
+
+def test_every_env_method_seed_is_a_trial_with_its_own_run_dir(tmp_path):
+    experiment = _experiment()
+    trials = experiment.trials
+    assert len(trials) == 8 and len({t.name for t in trials}) == 8
+    assert grid.run_path(tmp_path, grid.Trial("tsp", "alphazero", 1)) == tmp_path / "runs/tsp/alphazero/seed1"
+
+
+def test_a_trials_config_has_its_env_method_seed_and_the_shared_overrides():
+    experiment = _experiment()
+    config = experiment.config(grid.Trial("sokoban", "alphazero", 1))
+    assert (config.env, config.method, config.seed, config.population) == ("sokoban", "alphazero", 1, 8)
+    assert dict(config.env_args) == {"levels": "A"}
+    assert experiment.config(grid.Trial("tsp", "pizero", 0)).env_args == ()
+    options = experiment.run_options(grid.Trial("sokoban", "pizero", 0))
+    assert options["minutes"] == 5.0 and options["eval_every_minutes"] == 1.0 and options["workers"] == 2
+    assert options["eval_env_args"] == (("levels", "B"),)
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"envs": ("tsp", "chess")}, "--envs: unknown environment 'chess'"),
+    ({"methods": ("pizero", "dqn")}, "--methods: unknown method 'dqn'"),
+    ({"methods": ("es", "es")}, "--methods must name at least one, each once, got 'es,es'"),
+    ({"seeds": 0}, "--seeds must be positive, got 0"),
+    ({"budget_minutes": -1.0}, "--budget-minutes must be positive, got -1.0"),
+    ({"env_args": (("collect", (("size", 4),)),)}, "--env-arg: environment 'collect' is not in --envs tsp,sokoban"),
+])
+def test_bad_grids_are_one_line_errors(changes, message):
+    with pytest.raises(ConfigError, match="^" + message.replace("(", r"\(").replace(")", r"\)")):
+        _experiment(**changes)
+
+
+def test_the_spec_round_trips_and_a_different_experiment_in_the_same_dir_is_refused(tmp_path):
+    experiment = _experiment()
+    grid.write_spec(tmp_path, experiment)
+    assert grid.read_spec(tmp_path) == experiment
+    grid.write_spec(tmp_path, experiment)  # the same experiment again: a resume
+    with pytest.raises(ConfigError, match="holds a different experiment \\(it differs in seeds, budget_minutes\\)"):
+        grid.write_spec(tmp_path, _experiment(seeds=3, budget_minutes=6.0))
+    assert json.loads((tmp_path / grid.SPEC_FILE).read_text())["seeds"] == 2
+
+
+def test_the_command_checks_every_trial_before_anything_starts(tmp_path, capsys):
+    out = tmp_path / "exp"
+    code = main(["experiment", "--envs", "tsp,collect", "--methods", "es", "--seeds", "1", "--budget-minutes",
+                 "1", "--out", str(out), "--env-arg", "collect:num_coins=0"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("pizero: error: collect/es/seed0: collect: num_coins must be")
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+    code = main(["experiment", "--envs", "tsp", "--budget-minutes", "0", "--out", str(out)])
+    assert code == 2 and "--budget-minutes must be positive, got 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["experiment", "--envs", "tsp", "--budget-minutes", "1", "--out", str(out), "--env-arg", "levels=X"])
+    assert "expected ENV:KEY=VALUE, got 'levels=X'" in capsys.readouterr().err

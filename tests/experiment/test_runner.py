@@ -1,0 +1,99 @@
+"""`pizero experiment` end to end: a 2x2x2 grid on Ray Tune, killed mid-way and restored; then plot-experiment.
+
+The experiment runs as a `pizero` subprocess in its own process group with
+its own local Ray instance (as a user runs it), so that it can be SIGKILLed
+whole, Ray included, and started again with the same command.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from pizero_ray.experiment import grid
+
+BUDGET_MINUTES = 0.04  # 2.4 s of training per run, evaluated at 0, 1.2 s and the end
+GRID = ["--envs", "tsp,collect", "--methods", "es,alphazero", "--seeds", "2", "--budget-minutes",
+        str(BUDGET_MINUTES), "--eval-every-minutes", "0.02", "--eval-episodes", "8", "--cpus-per-trial", "1",
+        "--preset", "tiny", "--selfplay-episodes", "4", "--batch-size", "16", "--replay-size", "8",
+        "--updates-per-iteration", "2"]
+
+
+def _command(out: Path, cache: str) -> list[str]:
+    return [sys.executable, "-m", "pizero_ray.cli", "experiment", *GRID, "--out", str(out), "--compile-cache", cache]
+
+
+def _finished(out: Path) -> dict[str, str]:
+    """Trial name -> metrics.jsonl text, for the runs that have spent their budget (a last row past it, evaluated)."""
+    done = {}
+    for trial in grid.Experiment(envs=("tsp", "collect"), methods=("es", "alphazero"), seeds=2,
+                                 budget_minutes=BUDGET_MINUTES, eval_every_minutes=0.02).trials:
+        metrics = grid.run_path(out, trial) / "metrics.jsonl"
+        text = metrics.read_text() if metrics.exists() else ""
+        rows = [json.loads(line) for line in text.splitlines() if line.endswith("}")]
+        if rows and "eval_mean_score" in rows[-1] and rows[-1]["wall_time_s"] >= 60 * BUDGET_MINUTES:
+            done[trial.name] = text
+    return done
+
+
+@pytest.fixture(scope="module")
+def experiment(tmp_path_factory, compile_cache_dir):
+    """The grid started, SIGKILLed (Ray and all) once a trial has finished, and run again to its end."""
+    out = tmp_path_factory.mktemp("experiment")
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    first = subprocess.Popen(_command(out, compile_cache_dir), env=env, start_new_session=True,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 400
+    while not _finished(out) and first.poll() is None and time.time() < deadline:
+        time.sleep(0.2)
+    os.killpg(first.pid, signal.SIGKILL)
+    first.wait()
+    before = _finished(out)
+    second = subprocess.run(_command(out, compile_cache_dir), env=env, capture_output=True, text=True, timeout=500)
+    return out, before, second
+
+
+def test_a_killed_experiment_is_restored_and_finishes_without_rerunning_finished_trials(experiment):
+    out, before, second = experiment
+    assert 1 <= len(before) < 8  # the kill fell mid-way
+    assert second.returncode == 0, second.stderr[-3000:]
+    summary = json.loads(second.stdout.strip().splitlines()[-1])
+    assert summary["finished"] == 8 and not summary["errors"]
+    after = _finished(out)
+    assert sorted(after) == sorted(t.name for t in grid.read_spec(out).trials)
+    for name, text in before.items():
+        assert after[name] == text  # finished before the kill: not trained again
+    for text in after.values():
+        iterations = [json.loads(line)["iteration"] for line in text.splitlines()]
+        assert iterations == sorted(set(iterations))  # a resumed trial has each iteration once
+    assert summary == json.loads((out / "summary.json").read_text())
+    trial_dirs = [path for path in (out / "tune").iterdir() if path.is_dir()]
+    assert len(trial_dirs) == 8  # Tune's own trials: restored, not duplicated
+    assert all((grid.run_path(out, t) / "tensorboard").is_dir() for t in grid.read_spec(out).trials)
+
+
+def test_plot_experiment_writes_both_figures_and_a_table_row_per_env_and_method(experiment, tmp_path, capsys):
+    from pizero_ray.cli import main
+
+    out = experiment[0]
+    assert main(["plot-experiment", str(out), "--out", str(tmp_path / "docs")]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert report["results"] == 4 and report["states"] == ["collect", "tsp"]
+    for png in ("results.png", "states.png"):
+        assert (tmp_path / "docs" / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    table = (tmp_path / "docs" / "results_table.md").read_text()
+    for env in ("tsp", "collect"):
+        for method in ("es", "alphazero"):
+            assert sum(line.startswith(f"| {env} | {method} |") for line in table.splitlines()) == 1
+    results = json.loads((tmp_path / "docs" / "results.json").read_text())
+    assert {row["seeds"] for row in results["results"]} == {2}
+    assert {"random", "nearest_neighbour", "optimal"} <= set(results["references"]["tsp"])
+    assert {"random", "greedy"} <= set(results["references"]["collect"])
+    for row in results["results"]:
+        low, high = row["ci95_bca"]
+        assert low <= row["mean_score"] <= high
