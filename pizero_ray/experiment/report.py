@@ -110,7 +110,7 @@ def summarise(out: Path, experiment: grid.Experiment) -> dict:
 
 def table_markdown(summary: dict) -> str:
     """The results table: one row per (env, method) with a final score, the references beside each env."""
-    lines = [f"Budget {summary['budget_minutes']:g} training minutes per run, {summary['cpus_per_trial']} CPUs each; "
+    lines = [f"Budget {summary['budget_minutes']:g} training minutes per run, {summary['cpus_per_trial']} CPU(s) each; "
              f"{summary['eval_episodes']} evaluation episodes; {summary['machine']}; {summary['date']}.", "",
              "| env | method | final mean score | 95% CI (BCa) | seeds | references (same episodes) |",
              "|---|---|---|---|---|---|"]
@@ -154,7 +154,7 @@ def results_figure(out: Path, experiment: grid.Experiment, png: Path) -> None:
     for ax in list(axes.flat)[len(experiment.envs):]:
         ax.set_visible(False)
     fig.suptitle(f"Equal wall-clock: {experiment.budget_minutes:g} training minutes per run, "
-                 f"{experiment.cpus_per_trial} CPUs each ({machine()}); mean across seeds, 95% BCa band")
+                 f"{experiment.cpus_per_trial} CPU each\n{machine()}; mean across seeds, 95% BCa band", fontsize=10)
     fig.tight_layout()
     png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png, dpi=110)

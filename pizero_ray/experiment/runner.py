@@ -12,12 +12,13 @@ Resources: every trial gets ``cpus_per_trial`` CPUs. A PiZero/ES trial's
 driver takes none (an empty head bundle) and starts that many one-CPU
 worker actors inside the trial's placement group (Tune captures child
 actors); AlphaZero and MuZero learn inside the trial's own process, which
-holds the CPUs.
+holds the CPUs and pins itself to as many cores (as ES workers do).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
 
@@ -47,10 +48,11 @@ def train_trial(config: dict) -> None:
     from ray import tune
 
     from pizero_ray.storage import run_dir as rundir
-    from pizero_ray.trainer import driver
+    from pizero_ray.trainer import driver, local_devices
     from pizero_ray.trainer.options import RunOptions
 
     trial_config = config["trial"]
+    os.chdir(trial_config["cwd"])  # Tune starts a trial in its own directory: relative paths (levels=...) are ours
     out = Path(trial_config["out"])
     experiment = grid.read_spec(out)
     trial = grid.Trial(trial_config["env"], trial_config["method"], trial_config["seed"])
@@ -65,7 +67,14 @@ def train_trial(config: dict) -> None:
             tune.report({"iteration": row["iteration"], "training_minutes": row["wall_time_s"] / 60.0,
                          "eval_mean_score": row["eval_mean_score"]})
 
-    driver.train(path, config, options, on_iteration=report)
+    # A baseline learns in this process: pinned to cores of its own, as an ES trial's workers pin theirs, so
+    # that trials running side by side each get their CPUs and no more.
+    cores = local_devices.CoreClaim.claim(experiment.cpus_per_trial) if config.gradient_trained else None
+    try:
+        driver.train(path, config, options, on_iteration=report)
+    finally:
+        if cores is not None:
+            cores.release()
     evaluated = [row for row in rundir.read_metrics(path) if "eval_mean_score" in row]
     report(evaluated[-1])  # the final evaluation, also when a restored trial had nothing left to train
 
@@ -98,7 +107,7 @@ def run(out: Path, experiment: grid.Experiment, address: str | None = None,
 def _new_tuner(out: Path, experiment: grid.Experiment, trainable, compile_cache: str | None):
     from ray import tune
 
-    trial_configs = [{"out": str(out), "env": t.env, "method": t.method, "seed": t.seed,
+    trial_configs = [{"out": str(out), "cwd": os.getcwd(), "env": t.env, "method": t.method, "seed": t.seed,
                       "compile_cache": compile_cache} for t in experiment.trials]
     ceiling = CEILING_FACTOR * 60.0 * experiment.budget_minutes + CEILING_SLACK_S
     return tune.Tuner(

@@ -65,9 +65,18 @@ class CoreClaim:
     frees its cores at once, with nothing to clean up.
     """
 
-    def __init__(self, cores: tuple[int, ...], lock_fds: list[int]):
+    def __init__(self, cores: tuple[int, ...], lock_fds: list[int], unpinned: tuple[int, ...] = ()):
         self.cores = cores
         self._lock_fds = lock_fds  # open for the claim's (the worker's) lifetime
+        self._unpinned = unpinned  # the affinity before the claim
+
+    def release(self) -> None:
+        """Gives the cores back before the process ends (a process that goes on to other work)."""
+        for fd in self._lock_fds:
+            os.close(fd)
+        self._lock_fds = []
+        if self._unpinned:
+            os.sched_setaffinity(0, self._unpinned)
 
     @classmethod
     def claim(cls, count: int, lock_dir: str | os.PathLike | None = None) -> CoreClaim:
@@ -103,7 +112,7 @@ class CoreClaim:
             return cls((), [])
         cores = tuple(core for core, _ in held)
         os.sched_setaffinity(0, cores)
-        return cls(cores, [fd for _, fd in held])
+        return cls(cores, [fd for _, fd in held], tuple(allowed))
 
 
 class NoiseCache:
