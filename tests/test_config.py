@@ -157,6 +157,10 @@ def test_run_options_come_from_their_declared_defaults_and_flags():
     options = cli._run_options(args, args.iterations)
     assert options.iterations == 9 and options.pool.target_workers == 5 and not options.pool.pin_cores
     assert (options.pool.workers, options.pool.chunk_timeout_s, options.pool.compile_cache) == (3, 10.0, "none")
+    args = cli._parser().parse_args(["resume", "unused", "--minutes", "5", "--eval-every-minutes", "0.5",
+                                     "--eval-env-arg", "levels=valid", "--eval-env-arg", "horizon=60"])
+    options = cli._run_options(args, None)
+    assert options.eval_every_minutes == 0.5 and options.eval_env_args == (("horizon", 60), ("levels", "valid"))
 
 
 @pytest.mark.parametrize("values, message", [
@@ -166,6 +170,7 @@ def test_run_options_come_from_their_declared_defaults_and_flags():
     ({"workers": 3, "max_workers": 2}, "--max-workers 2 is below --workers 3"),
     ({"workers": 0}, "--workers must be at least 1, got 0"),
     ({"eval_every": -1}, "--eval-every must be at least 0, got -1"),
+    ({"eval_every_minutes": 0.0}, "--eval-every-minutes must be positive, got 0.0"),
 ])
 def test_run_options_validate_themselves(values, message):
     from pizero_ray.trainer.options import RunOptions

@@ -143,14 +143,22 @@ def test_a_wall_clock_budget_stops_with_a_checkpoint_and_resume_raises_it(ray_se
 
     def train(seconds):
         options = driver.RunOptions.create(minutes=seconds / 60, workers=1, compile_cache=compile_cache_dir,
-                                           checkpoint_every=0, eval_every=1000, eval_episodes=4)
+                                           checkpoint_every=0, eval_every=1000, eval_every_minutes=1 / 60,
+                                           eval_episodes=4)
         return driver.train(path, config, options), run_dir.read_metrics(path)
+
+    def evaluated_at_every_second(rows):
+        """--eval-every-minutes 1/60: the first iteration past each whole second of training is evaluated."""
+        for second in range(1, int(rows[-1]["wall_time_s"]) + 1):
+            first = next(row for row in rows if row["wall_time_s"] >= second)
+            assert "eval_mean_score" in first, (second, first["iteration"])
 
     first, rows = train(3.0)
     assert first["out_of_time"] and first["stopped_by"] is None and first["iteration"] >= 1
     assert rows[-1]["iteration"] == first["iteration"] and "eval_mean_score" in rows[-1]  # the last one is evaluated
     assert rows[-1]["wall_time_s"] >= 3.0 > rows[-2]["wall_time_s"]  # stopped by the first iteration past it
     assert runs.load_run(path).iteration == first["iteration"]  # checkpointed where it stopped
+    evaluated_at_every_second(rows)
 
     spent = rows[-1]["wall_time_s"]
     again, _ = train(spent)  # the run's budget is spent: nothing more
@@ -159,6 +167,7 @@ def test_a_wall_clock_budget_stops_with_a_checkpoint_and_resume_raises_it(ray_se
     assert more["iteration"] > first["iteration"] and more["out_of_time"]
     assert later[-1]["wall_time_s"] >= spent + 4.0 > later[-2]["wall_time_s"]
     assert [row["iteration"] for row in later] == list(range(more["iteration"] + 1))
+    evaluated_at_every_second(later)  # the marks carry on across the resume
 
 
 def test_a_run_needs_a_target_and_a_positive_budget(tmp_path, capsys):
