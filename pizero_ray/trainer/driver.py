@@ -87,6 +87,7 @@ class _Run:
         self.started = time.time()
         self.evaluating_s = 0.0  # the learning curve's evaluations are measurement, not training time
         self.next_eval_s = _next_multiple(self.wall_offset, options.eval_every_minutes)
+        self.finished = False  # the iterations or the budget reached (record decides, once per iteration)
 
     def save(self) -> None:
         runs.save(self.writer, self.config, self.state)
@@ -108,8 +109,10 @@ class _Run:
         """
         return self.wall_offset + time.time() - self.started - self.evaluating_s
 
-    def out_of_time(self) -> bool:
-        return self.options.minutes is not None and self.wall_time_s() >= 60.0 * self.options.minutes
+    def out_of_time(self, wall_time_s: float | None = None) -> bool:
+        """The budget is spent (by the clock now, or at ``wall_time_s``)."""
+        wall_time_s = self.wall_time_s() if wall_time_s is None else wall_time_s
+        return self.options.minutes is not None and wall_time_s >= 60.0 * self.options.minutes
 
     def reached_iterations(self) -> bool:
         return self.options.iterations is not None and self.state.iteration >= self.options.iterations
@@ -171,17 +174,20 @@ class _Run:
     def record(self, row: dict) -> None:
         """Evaluates if due (and after the last iteration), writes the row, checkpoints if due."""
         iteration, options = row["iteration"], self.options
-        if self.evaluator is not None and (self.eval_due(iteration) or self.done()):
+        # Decided once per iteration, at the row's clock: the loop stops on the same verdict, so the row that
+        # ends a run is always the evaluated one (a fresh look at the clock a moment later could differ).
+        self.finished = self.reached_iterations() or self.out_of_time(row["wall_time_s"])
+        if self.evaluator is not None and (self.eval_due(iteration, row["wall_time_s"]) or self.finished):
             row["eval_mean_score"] = self.evaluate()
             self.next_eval_s = _next_multiple(row["wall_time_s"], options.eval_every_minutes)
         self.write(row)
         if options.checkpoint_every > 0 and iteration % options.checkpoint_every == 0:
             self.save()
 
-    def eval_due(self, iteration: int) -> bool:
+    def eval_due(self, iteration: int, wall_time_s: float) -> bool:
         """Every ``eval_every`` iterations, and each time training time passes an ``eval_every_minutes`` mark."""
         every = self.options.eval_every
-        return (every > 0 and iteration % every == 0) or self.wall_time_s() >= self.next_eval_s
+        return (every > 0 and iteration % every == 0) or wall_time_s >= self.next_eval_s
 
     def write(self, row: dict) -> None:
         self.log.write(row)  # the source of truth first
@@ -239,7 +245,8 @@ def train(
     try:
         with stop:
             run.begin()
-            while not run.done() and not stop():
+            run.finished = run.done()  # a resumed run may have nothing left to do
+            while not run.finished and not stop():
                 try:
                     row = run.iterate(stop)
                 except Interrupted:
