@@ -17,6 +17,8 @@ import pytest
 
 from pizero_ray.experiment import grid
 
+pytestmark = pytest.mark.slow  # minutes: eight trials' start-ups and compiles, twice a Ray instance
+
 BUDGET_MINUTES = 0.04  # 2.4 s of training per run, evaluated at 0, 1.2 s and the end
 GRID = ["--envs", "tsp,collect", "--methods", "es,alphazero", "--seeds", "2", "--budget-minutes",
         str(BUDGET_MINUTES), "--eval-every-minutes", "0.02", "--eval-episodes", "8", "--cpus-per-trial", "1",
