@@ -89,18 +89,6 @@ def ray_session(ray_cluster):
     return ray
 
 
-def pytest_collection_modifyitems(session, config, items):
-    """The files with slow tests first (stable otherwise).
-
-    `make test` runs two pytest-xdist workers, each taking whole files: the
-    slow files (the README walkthrough, mostly waiting; the experiment
-    runner) then start at once, side by side, and the short files fill the
-    gaps around them, instead of the two running alone at the end.
-    """
-    slow_files = {item.path for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.path not in slow_files)
-
-
 def pytest_configure(config):
     config.addinivalue_line("markers", "readme_walkthrough: the README walkthrough's test (see readme_walkthrough)")
 
