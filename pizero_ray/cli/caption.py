@@ -53,13 +53,13 @@ def tsp_measures(state, final: bool) -> str:
 
 def flp_measures(state, objective: str) -> str:
     """The objective of the facilities placed so far: covering radius (max) or mean distance (mean)."""
-    clients = np.asarray(state.clients, dtype=np.float64)
-    placed = np.asarray(state.facilities, dtype=np.float64)[:int(state.t)]
+    from envs import flp
+
+    placed = np.asarray(state.facilities)[:int(state.t)]
     name = "covering radius" if objective == "max" else "mean distance"
     if not len(placed):
         return f"{name}: no facility yet"
-    nearest = np.linalg.norm(clients[:, None] - placed[None], axis=-1).min(axis=1)
-    return f"{name} {nearest.max() if objective == 'max' else nearest.mean():.3f}"
+    return f"{name} {float(flp.cost(np.asarray(state.clients), placed, objective)):.3f}"
 
 
 def measures(env_name: str, state, final: bool) -> list[str]:

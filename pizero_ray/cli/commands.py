@@ -258,8 +258,6 @@ def _cmd_experiment(args) -> int:
     from pizero_ray.experiment import grid, runner
 
     overrides = {name: value for name, value in _given(Config, args).items() if name not in _GRID_FIELDS}
-    if args.budget_minutes <= 0:
-        raise UsageError(f"--budget-minutes must be positive, got {args.budget_minutes:g}")
     experiment = grid.Experiment(
         envs=args.envs, methods=args.methods, seeds=args.seeds, budget_minutes=args.budget_minutes,
         eval_every_minutes=args.eval_every_minutes or args.budget_minutes / 5, eval_episodes=args.eval_episodes,
@@ -283,7 +281,7 @@ def _cmd_plot_experiment(args) -> int:
 
     out = rundir.resolve(args.experiment_dir)
     experiment = grid.read_spec(out)
-    summary = report.write_report(out, Path(args.out))
+    summary = report.write_report(out, experiment, Path(args.out))
     shown = report.state_runs(out, experiment)
     if shown:
         from pizero_ray.cli.states import states_figure

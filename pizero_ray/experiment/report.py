@@ -92,10 +92,13 @@ def machine() -> str:
     return f"{platform.machine()} {os.cpu_count()} cores, {platform.system()}"
 
 
-def summarise(out: Path, experiment: grid.Experiment) -> dict:
-    """Per (env, method): the final mean score, its BCa 95% CI, and seeds; the references; the setting."""
+def summarise(experiment: grid.Experiment, found: dict, refs: dict) -> dict:
+    """Per (env, method): the final mean score, its BCa 95% CI, and seeds; the references; the setting.
+
+    ``found``: ``curves``; ``refs``: ``references``.
+    """
     rows = []
-    for (env, method), runs_ in sorted(curves(out, experiment).items(),
+    for (env, method), runs_ in sorted(found.items(),
                                        key=lambda kv: (experiment.envs.index(kv[0][0]),
                                                        experiment.methods.index(kv[0][1]))):
         final = runs_[:, -1]
@@ -104,8 +107,7 @@ def summarise(out: Path, experiment: grid.Experiment) -> dict:
                      "ci95_bca": [low, high], "seed_scores": [float(v) for v in final]})
     return {"budget_minutes": experiment.budget_minutes, "eval_episodes": experiment.eval_episodes,
             "cpus_per_trial": experiment.cpus_per_trial, "seeds_asked": experiment.seeds,
-            "machine": machine(), "date": time.strftime("%Y-%m-%d"), "results": rows,
-            "references": references(out, experiment)}
+            "machine": machine(), "date": time.strftime("%Y-%m-%d"), "results": rows, "references": refs}
 
 
 def table_markdown(summary: dict) -> str:
@@ -123,14 +125,17 @@ def table_markdown(summary: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def results_figure(out: Path, experiment: grid.Experiment, png: Path) -> None:
-    """One panel per environment: mean evaluated score against training minutes, BCa bands, references."""
+def results_figure(experiment: grid.Experiment, found: dict, refs: dict, png: Path) -> None:
+    """One panel per environment: mean evaluated score against training minutes, BCa bands, references.
+
+    ``found``: ``curves``; ``refs``: ``references``.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    found, refs, minutes = curves(out, experiment), references(out, experiment), marks_s(experiment) / 60.0
+    minutes = marks_s(experiment) / 60.0
     columns = min(4, len(experiment.envs))
     rows = -(-len(experiment.envs) // columns)
     fig, axes = plt.subplots(rows, columns, figsize=(4.6 * columns, 3.8 * rows), squeeze=False)
@@ -177,12 +182,12 @@ def state_runs(out: Path, experiment: grid.Experiment, limit: int = 6) -> dict[s
     return shown
 
 
-def write_report(out: Path, docs: Path) -> dict:
+def write_report(out: Path, experiment: grid.Experiment, docs: Path) -> dict:
     """results.png, results_table.md and results.json in ``docs``; returns the summary."""
-    experiment = grid.read_spec(out)
-    summary = summarise(out, experiment)
+    found, refs = curves(out, experiment), references(out, experiment)
+    summary = summarise(experiment, found, refs)
     docs.mkdir(parents=True, exist_ok=True)
-    results_figure(out, experiment, docs / "results.png")
+    results_figure(experiment, found, refs, docs / "results.png")
     (docs / "results_table.md").write_text(table_markdown(summary))
     (docs / "results.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
