@@ -31,7 +31,11 @@ def _command(out: Path, cache: str) -> list[str]:
 
 
 def _finished(out: Path) -> dict[str, str]:
-    """Trial name -> metrics.jsonl text, for the runs that have spent their budget (a last row past it, evaluated)."""
+    """Trial name -> metrics.jsonl text, for the runs that have ended: a last row past the budget, evaluated,
+    and the final checkpoint saved at it. (Killed between that row and that save, a run resumes from its
+    previous checkpoint and trains the dropped iterations again, as it should: it had not finished.)"""
+    from pizero_ray.storage import checkpoints
+
     done = {}
     for trial in grid.Experiment(envs=("tsp", "collect"), methods=("es", "alphazero"), seeds=2,
                                  budget_minutes=BUDGET_MINUTES, eval_every_minutes=0.02).trials:
@@ -39,7 +43,8 @@ def _finished(out: Path) -> dict[str, str]:
         text = metrics.read_text() if metrics.exists() else ""
         rows = [json.loads(line) for line in text.splitlines() if line.endswith("}")]
         if rows and "eval_mean_score" in rows[-1] and rows[-1]["wall_time_s"] >= 60 * BUDGET_MINUTES:
-            done[trial.name] = text
+            if checkpoints.checkpoint_steps(grid.run_path(out, trial))[-1:] == [rows[-1]["iteration"]]:
+                done[trial.name] = text
     return done
 
 
