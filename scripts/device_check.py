@@ -183,6 +183,19 @@ def train_for(python: str, env: dict, name: str, extra: tuple, seconds: float, g
     return result
 
 
+def report_path(args, report: dict) -> Path:
+    kind = re.sub(r"[^a-z0-9]+", "-", report["gpus"][0].split(",")[0].lower()).strip("-")
+    return Path(args.out) / f"{report['date']}-device-check-{kind}.json"
+
+
+def save(args, report: dict) -> Path:
+    """Writes the report so far: a step that hangs past the command's own limit still leaves the others'."""
+    path = report_path(args, report)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n")
+    return path
+
+
 def check(args) -> dict:
     gpus = gpu_names()
     if not gpus and not args.cpu_rehearsal:
@@ -204,6 +217,7 @@ def check(args) -> dict:
     for name, step in steps:
         print(f"device-check: {name} ...", file=sys.stderr, flush=True)
         report[name] = step()
+        save(args, report)
         print(f"device-check: {name}: {_summary(name, report[name])}", file=sys.stderr, flush=True)
     return report
 
@@ -257,10 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     started = time.time()
     report = check(args)
     report["total_s"] = round(time.time() - started, 1)
-    kind = re.sub(r"[^a-z0-9]+", "-", report["gpus"][0].split(",")[0].lower()).strip("-")
-    path = Path(args.out) / f"{report['date']}-device-check-{kind}.json"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n")
+    path = save(args, report)
     print(json.dumps({name: _summary(name, report[name]) for name in report
                       if name == "gpu_tests" or name.startswith(("noise", "bench", "train_"))}, indent=2))
     print(f"device-check: wrote {path} ({report['total_s']} s)")

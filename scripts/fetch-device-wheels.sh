@@ -22,7 +22,7 @@ mkdir -p "$dir"
 python3 -m pip download --quiet --no-deps --only-binary=:all: --python-version "$python_version" \
     --implementation cp --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 \
     --platform manylinux2014_x86_64 -d "$dir" \
-    ray==2.60.0 mctx==0.0.71 chex==0.1.92 jsonschema jsonschema-specifications referencing rpds-py
+    ray==2.60.0 mctx==0.0.71 chex==0.1.92 tensorboardX==2.6.4 jsonschema jsonschema-specifications referencing rpds-py
 
 python3 - "$dir" <<'PY'
 import pathlib, sys, zipfile
