@@ -196,11 +196,18 @@ class WorkerPool:
         part without regenerating it; a chunk whose worker is gone, fails or
         does not answer within the chunk timeout is computed by
         ``compute_here`` (regenerating its noise): the same part either way.
+        With GPU workers a lost chunk goes to a surviving worker first: only
+        the same backend regenerates the same bits.
         Chunks whose weights are all zero (pairs dropped by ``min_fraction``)
         are always computed here. ``should_stop`` is looked at every POLL_S
         and before each part computed here: a stop raises ``Interrupted``.
         """
         parts = self._collect_parts(self._ask_for_parts(seed, weights, owners), should_stop)
+        if self._options.gpus_per_worker > 0:
+            # A CPU draws some normals a few ulps away from a GPU's (4.7% of them on an H200, docs/performance.md):
+            # a surviving GPU worker regenerates a lost chunk's part, so the update stays bit-identical.
+            lost = [index for index in range(self._config.num_chunks) if index not in parts]
+            parts.update(self._collect_parts(self._ask_for_parts(seed, weights, self._survivors(lost)), should_stop))
         from_workers = len(parts)
         for index in range(self._config.num_chunks):
             if index not in parts:
@@ -209,15 +216,20 @@ class WorkerPool:
                 parts[index] = compute_here(index)
         return [parts[index] for index in range(self._config.num_chunks)], self._config.num_chunks - from_workers
 
+    def _survivors(self, chunks: list[int]) -> dict:
+        """The pool's ready workers dealt round-robin over ``chunks``: {chunk index: worker}."""
+        ready = [worker for worker in self._workers if worker.ready]
+        return {index: ready[k % len(ready)] for k, index in enumerate(chunks)} if ready else {}
+
     def _ask_for_parts(self, seed: int, weights: np.ndarray, owners: dict) -> dict:
-        """Asks each chunk's owner, if still in the pool, for the chunk's part: {ref: chunk index}."""
+        """Asks each chunk's owner, if still in the pool, for the chunk's part: {ref: (chunk index, owner)}."""
         chunk = self._config.chunk_size
         asked = {}
         for index in range(self._config.num_chunks):
             worker = owners.get(index)
             chunk_weights = weights[index * chunk:(index + 1) * chunk]
             if worker is not None and worker in self._workers and chunk_weights.any():
-                asked[worker.actor.gradient_part.remote(seed, index * chunk, chunk_weights)] = index
+                asked[worker.actor.gradient_part.remote(seed, index * chunk, chunk_weights)] = index, worker
         return asked
 
     def _collect_parts(self, asked: dict, should_stop: Callable[[], bool]) -> dict[int, np.ndarray]:
@@ -236,13 +248,15 @@ class WorkerPool:
                 break  # slow workers: their parts are computed here
             ready_refs, _ = ray.wait(list(waiting), num_returns=len(waiting), timeout=min(POLL_S, left))
             for ref in ready_refs:
-                index = waiting.pop(ref)
+                index, worker = waiting.pop(ref)
                 try:
                     parts[index] = ray.get(ref, timeout=POLL_S)
                 except RayTaskError as error:
                     raise TrainingError(f"a worker failed computing chunk {index}'s gradient part: {error}") from None
-                except (RayError, GetTimeoutError):
-                    pass  # the worker died: the part is computed here
+                except GetTimeoutError:
+                    pass  # (a RayError too) slow, not dead: the part is computed elsewhere
+                except RayError:
+                    self._drop(worker, kill=False)  # the worker died: the part is computed elsewhere
         return parts
 
 

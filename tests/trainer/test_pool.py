@@ -126,6 +126,55 @@ def test_gradient_parts_of_a_dead_worker_are_computed_by_the_driver(ray_session,
         pool.shutdown()
 
 
+def test_gpu_workers_regenerate_a_dead_workers_parts(ray_session, ray_cluster, compile_cache_dir):
+    """With GPU workers a lost chunk's part comes from a surviving worker, not the driver.
+
+    A CPU draws some normals a few ulps away from a GPU's (measured on an H200),
+    so only the workers' backend regenerates the bits the dead worker kept.
+    The node's GPU is a Ray resource only: the workers compute on its CPUs.
+    """
+    import functools
+    import time
+
+    import numpy as np
+
+    import envs
+    from pizero_ray import es
+    from pizero_ray.es import population
+    from pizero_ray.trainer.options import PoolOptions
+    from pizero_ray.trainer.pool import WorkerPool
+
+    node = ray_cluster.add_node(num_cpus=2, num_gpus=1, resources={"fake_gpu_node": 2},
+                                object_store_memory=OBJECT_STORE_BYTES)
+    ray_cluster.wait_for_nodes()
+    theta, layout = population.flat_params(CONFIG, envs.make(CONFIG.env))
+    strategy = es.make_strategy(CONFIG, layout.perturbation)
+    seed = strategy.ask(strategy.init(theta))
+    pool = WorkerPool(CONFIG, PoolOptions(workers=2, gpus_per_worker=0.5, compile_cache=compile_cache_dir,
+                                          worker_resources=(("fake_gpu_node", 1.0),)))
+    try:
+        theta_ref = ray_session.put(np.asarray(theta))
+        deadline = time.time() + 300
+        while time.time() < deadline:  # until both workers are up and each evaluated a chunk
+            result = pool.evaluate(theta_ref, seed)
+            if len({id(owner) for owner in result.owners.values()}) == 2:
+                break
+            time.sleep(1)
+        weights = strategy.weights(result.scores, result.valid)
+        compute_here = functools.partial(strategy.parts.chunk_here, seed, weights)
+        dead = result.owners[0]
+        ray_session.kill(dead.actor, no_restart=True)
+        _wait_until_dead(ray_session, dead.actor)
+        parts, computed_here = pool.gradient_parts(seed, weights, result.owners, compute_here)
+        assert len({id(owner) for owner in result.owners.values()}) == 2
+        assert computed_here == 0  # the survivor regenerated the dead worker's chunks
+        for index, part in enumerate(parts):
+            np.testing.assert_array_equal(part, compute_here(index))
+    finally:
+        pool.shutdown()
+        ray_cluster.remove_node(node)
+
+
 def _wait_until_dead(ray, actor, timeout_s: float = 30.0) -> None:
     import time
 
