@@ -242,7 +242,8 @@ def _add_experiment_parsers(sub) -> None:
     _add_settings(experiment, Config, show_defaults=False, exclude=_GRID_FIELDS)
 
     report = sub.add_parser("plot-experiment", help="an experiment's results figure, table and states figure")
-    report.add_argument("experiment_dir")
+    report.add_argument("experiment_dirs", nargs="+", metavar="EXPERIMENT_DIR",
+                        help="an experiment's --out; several: sittings of one experiment over other environments")
     report.add_argument("--out", required=True, help="directory for results.png, results_table.md, results.json")
 
 
@@ -279,14 +280,14 @@ def _cmd_experiment(args) -> int:
 def _cmd_plot_experiment(args) -> int:
     from pizero_ray.experiment import grid, report
 
-    out = rundir.resolve(args.experiment_dir)
-    experiment = grid.read_spec(out)
-    summary = report.write_report(out, experiment, Path(args.out))
-    shown = report.state_runs(out, experiment)
+    sittings = [(out, grid.read_spec(out)) for out in map(rundir.resolve, args.experiment_dirs)]
+    summary = report.write_report(sittings, Path(args.out))
+    shown = report.state_runs(sittings)
     if shown:
         from pizero_ray.cli.states import states_figure
 
-        states_figure(shown, Path(args.out) / "states.png")
+        eval_env_args = {env: dict(values) for _, spec in sittings for env, values in spec.eval_env_args}
+        states_figure(shown, Path(args.out) / "states.png", env_args=eval_env_args)  # Sokoban on its valid levels
     print(json.dumps({"out": args.out, "results": len(summary["results"]), "states": sorted(shown)}))
     return 0
 

@@ -130,6 +130,33 @@ def check(experiment: Experiment) -> None:
                 raise ConfigError(f"{trial.name}: {error}") from None
 
 
+PER_ENV_FIELDS = ("envs", "env_args", "eval_env_args")  # what may differ between sittings of one experiment
+
+
+def combine(sittings: list[Experiment]) -> Experiment:
+    """Sittings of one experiment, each over other environments, as one grid (for its report).
+
+    They must agree on everything else (methods, seeds, budget, evaluations,
+    CPUs, preset, overrides): else a one-line ConfigError naming the field.
+    """
+    first = sittings[0]
+    seen: dict[str, int] = {}
+    for index, sitting in enumerate(sittings):
+        changed = [f.name for f in dataclasses.fields(Experiment)
+                   if f.name not in PER_ENV_FIELDS and getattr(sitting, f.name) != getattr(first, f.name)]
+        if changed:
+            name = changed[0]
+            raise ConfigError(f"sitting {index + 1} differs from sitting 1 in {name}: "
+                              f"{getattr(sitting, name)!r} against {getattr(first, name)!r}")
+        for env in sitting.envs:
+            if env in seen:
+                raise ConfigError(f"environment {env!r} is in sittings {seen[env] + 1} and {index + 1}")
+            seen[env] = index
+    return dataclasses.replace(first, envs=tuple(seen),
+                               env_args=tuple(item for sitting in sittings for item in sitting.env_args),
+                               eval_env_args=tuple(item for sitting in sittings for item in sitting.eval_env_args))
+
+
 def write_spec(out: Path, experiment: Experiment) -> None:
     """OUT/experiment.json; an existing one must describe the same experiment (else a one-line error)."""
     path = out / SPEC_FILE

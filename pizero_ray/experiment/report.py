@@ -166,25 +166,33 @@ def results_figure(experiment: grid.Experiment, found: dict, refs: dict, png: Pa
     plt.close(fig)
 
 
-def state_runs(out: Path, experiment: grid.Experiment, limit: int = 6) -> dict[str, Path]:
+def state_runs(sittings: list[tuple[Path, grid.Experiment]], limit: int = 6) -> dict[str, Path]:
     """env -> the run whose agent the states figure shows: seed 0 of the first method listed that has one.
 
     One panel per family of environments: flp-mean and pacman-po only where flp or pacman is not in the grid.
     """
+    all_envs = {env for _, experiment in sittings for env in experiment.envs}
     shown = {}
-    envs = [env for env in experiment.envs if VARIANT_OF.get(env) not in experiment.envs]
-    for env in envs[:limit]:
-        for method in experiment.methods:
-            path = grid.run_path(out, grid.Trial(env, method, 0))
-            if path.exists():
-                shown[env] = path
-                break
+    for out, experiment in sittings:
+        for env in [env for env in experiment.envs if VARIANT_OF.get(env) not in all_envs]:
+            for method in experiment.methods:
+                path = grid.run_path(out, grid.Trial(env, method, 0))
+                if path.exists() and len(shown) < limit:
+                    shown[env] = path
+                    break
     return shown
 
 
-def write_report(out: Path, experiment: grid.Experiment, docs: Path) -> dict:
-    """results.png, results_table.md and results.json in ``docs``; returns the summary."""
-    found, refs = curves(out, experiment), references(out, experiment)
+def write_report(sittings: list[tuple[Path, grid.Experiment]], docs: Path) -> dict:
+    """results.png, results_table.md and results.json in ``docs`` for one or more sittings; returns the summary.
+
+    Each sitting is (its --out, its spec); ``grid.combine`` checks they are one experiment.
+    """
+    experiment = grid.combine([spec for _, spec in sittings])
+    found, refs = {}, {}
+    for out, spec in sittings:
+        found.update(curves(out, spec))
+        refs.update(references(out, spec))
     summary = summarise(experiment, found, refs)
     docs.mkdir(parents=True, exist_ok=True)
     results_figure(experiment, found, refs, docs / "results.png")

@@ -57,6 +57,27 @@ def test_the_spec_round_trips_and_a_different_experiment_in_the_same_dir_is_refu
     assert json.loads((tmp_path / grid.SPEC_FILE).read_text())["seeds"] == 2
 
 
+def test_sittings_over_other_environments_combine_into_one_grid():
+    first = _experiment()
+    second = _experiment(envs=("collect", "flp"), env_args=(("flp", (("num_facilities", 2),)),), eval_env_args=())
+    combined = grid.combine([first, second])
+    assert combined.envs == ("tsp", "sokoban", "collect", "flp")
+    assert combined.seeds == 2 and combined.methods == first.methods
+    assert dict(combined.env_args) == {"sokoban": (("levels", "A"),), "flp": (("num_facilities", 2),)}
+    assert dict(combined.eval_env_args) == {"sokoban": (("levels", "B"),)}
+    assert grid.combine([first]) == first
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"envs": ("collect",), "env_args": (), "eval_env_args": (), "budget_minutes": 3.0},
+     "sitting 2 differs from sitting 1 in budget_minutes: 3.0 against 5.0"),
+    ({"envs": ("collect", "tsp"), "env_args": (), "eval_env_args": ()}, "environment 'tsp' is in sittings 1 and 2"),
+])
+def test_sittings_of_different_experiments_are_refused(changes, message):
+    with pytest.raises(ConfigError, match="^" + message + "$"):
+        grid.combine([_experiment(), _experiment(**changes)])
+
+
 def test_the_command_checks_every_trial_before_anything_starts(tmp_path, capsys):
     out = tmp_path / "exp"
     code = main(["experiment", "--envs", "tsp,collect", "--methods", "es", "--seeds", "1", "--budget-minutes",

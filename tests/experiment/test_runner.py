@@ -104,3 +104,32 @@ def test_plot_experiment_writes_both_figures_and_a_table_row_per_env_and_method(
     for row in results["results"]:
         low, high = row["ci95_bca"]
         assert low <= row["mean_score"] <= high
+
+
+def test_plot_experiment_joins_sittings_over_other_environments(experiment, tmp_path, capsys):
+    """The grid's two environments as two sittings (copies of its run dirs, one spec each): one table, one figure."""
+    import dataclasses
+    import shutil
+
+    from pizero_ray.cli import main
+    from pizero_ray.experiment.report import REFERENCES_FILE
+
+    out = experiment[0]
+    spec = grid.read_spec(out)
+    sittings = []
+    for env in spec.envs:
+        sitting = tmp_path / f"sitting-{env}"
+        shutil.copytree(out / grid.RUNS / env, sitting / grid.RUNS / env)
+        if (out / REFERENCES_FILE).exists():  # scored by the test above: not scored again
+            shutil.copy(out / REFERENCES_FILE, sitting / REFERENCES_FILE)
+        grid.write_spec(sitting, dataclasses.replace(
+            spec, envs=(env,), env_args=tuple(item for item in spec.env_args if item[0] == env),
+            eval_env_args=tuple(item for item in spec.eval_env_args if item[0] == env)))
+        sittings.append(str(sitting))
+    assert main(["plot-experiment", *sittings, "--out", str(tmp_path / "docs")]) == 0
+    shown = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert shown["results"] == 4 and shown["states"] == ["collect", "tsp"]
+    joined = json.loads((tmp_path / "docs" / "results.json").read_text())
+    assert [(row["env"], row["method"]) for row in joined["results"]] == [
+        (env, method) for env in spec.envs for method in spec.methods]
+    assert set(joined["references"]) == set(spec.envs)
