@@ -17,8 +17,7 @@ def plot_runs(run_paths: list[Path], labels: list[str], out: Path, title: str | 
     tsp = config.env == "tsp"
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for path, label in zip(run_paths, labels):
-        rows = rundir.read_metrics(path)
-        evals = [r for r in rows if "eval_mean_score" in r]
+        evals = rundir.evaluated_rows(path)
         sign = -1.0 if tsp else 1.0  # TSP reads better as tour length
         for ax, x_key in zip(axes, ("iteration", "wall_time_s")):
             xs = [r[x_key] / (60.0 if x_key == "wall_time_s" else 1.0) for r in evals]

@@ -114,6 +114,16 @@ def run_path(out: Path, trial: Trial) -> Path:
     return out / RUNS / trial.env / trial.method / f"seed{trial.seed}"
 
 
+def final_evaluation(out: Path, experiment: Experiment, trial: Trial) -> dict | None:
+    """The trial's last evaluated metrics row once it has spent its budget; None before (not started, or not done)."""
+    from pizero_ray.storage import run_dir as rundir
+
+    evaluated = rundir.evaluated_rows(run_path(out, trial))
+    if not evaluated or evaluated[-1]["wall_time_s"] < 60.0 * experiment.budget_minutes:
+        return None
+    return evaluated[-1]
+
+
 def check(experiment: Experiment) -> None:
     """Builds every trial's configuration and environment: a bad one is a one-line ConfigError before any trial.
 

@@ -37,10 +37,9 @@ def curves(out: Path, experiment: grid.Experiment) -> dict[tuple[str, str], np.n
     marks = marks_s(experiment)
     found: dict[tuple[str, str], list[np.ndarray]] = {}
     for trial in experiment.trials:
-        path = grid.run_path(out, trial)
-        rows = [row for row in rundir.read_metrics(path) if "eval_mean_score" in row] if path.exists() else []
-        if not rows or rows[-1]["wall_time_s"] < marks[-1]:
+        if grid.final_evaluation(out, experiment, trial) is None:
             continue  # not started, or not finished: no final score yet
+        rows = rundir.evaluated_rows(grid.run_path(out, trial))
         times = np.array([row["wall_time_s"] for row in rows])
         scores = np.array([row["eval_mean_score"] for row in rows])
         found.setdefault((trial.env, trial.method), []).append(bands.curve_at(times, scores, marks))

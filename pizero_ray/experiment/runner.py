@@ -75,8 +75,7 @@ def train_trial(config: dict) -> None:
     finally:
         if cores is not None:
             cores.release()
-    evaluated = [row for row in rundir.read_metrics(path) if "eval_mean_score" in row]
-    report(evaluated[-1])  # the final evaluation, also when a restored trial had nothing left to train
+    report(rundir.evaluated_rows(path)[-1])  # the final evaluation, also when a restored trial had nothing to train
 
 
 def run(out: Path, experiment: grid.Experiment, address: str | None = None,
@@ -126,16 +125,13 @@ def _trial_dirname(trial_config: dict) -> str:
 
 def _summary(out: Path, experiment: grid.Experiment, results) -> dict:
     """Each trial's final state from its run dir (the source of truth), and Tune's errors if any."""
-    from pizero_ray.storage import run_dir as rundir
-
     errors = [str(result.error).splitlines()[0] for result in results if result.error is not None]
     trials = {}
     for trial in experiment.trials:
-        rows = rundir.read_metrics(grid.run_path(out, trial)) if grid.run_path(out, trial).exists() else []
-        evaluated = [row for row in rows if "eval_mean_score" in row]
-        trials[trial.name] = ({"iteration": evaluated[-1]["iteration"],
-                               "training_minutes": round(evaluated[-1]["wall_time_s"] / 60.0, 3),
-                               "eval_mean_score": evaluated[-1]["eval_mean_score"]} if evaluated else None)
+        final = grid.final_evaluation(out, experiment, trial)
+        trials[trial.name] = final and {"iteration": final["iteration"],
+                                        "training_minutes": round(final["wall_time_s"] / 60.0, 3),
+                                        "eval_mean_score": final["eval_mean_score"]}
     return {"out": str(out), "finished": sum(t is not None for t in trials.values()), "trials": trials,
             "errors": errors, "time": time.strftime("%Y-%m-%d %H:%M:%S")}
 

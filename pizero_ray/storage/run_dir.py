@@ -63,6 +63,11 @@ def read_metrics(run_dir: Path) -> list[dict]:
     return _metrics_lines(run_dir)[0]
 
 
+def evaluated_rows(run_dir: Path) -> list[dict]:
+    """The metrics rows that carry a learning-curve evaluation, oldest first ([] before the first is written)."""
+    return [row for row in read_metrics(run_dir) if "eval_mean_score" in row]
+
+
 def rewrite_metrics(run_dir: Path, rows: list[dict]) -> None:
     """Replaces metrics.jsonl with exactly ``rows`` (atomically, on disk before it returns)."""
     path = run_dir / METRICS_FILE

@@ -57,6 +57,22 @@ def test_the_spec_round_trips_and_a_different_experiment_in_the_same_dir_is_refu
     assert json.loads((tmp_path / grid.SPEC_FILE).read_text())["seeds"] == 2
 
 
+def test_a_trial_has_a_final_evaluation_only_once_its_budget_is_spent(tmp_path):
+    from pizero_ray.storage import run_dir
+
+    experiment, trial = _experiment(), grid.Trial("tsp", "pizero", 0)
+    assert grid.final_evaluation(tmp_path, experiment, trial) is None  # not started
+    path = grid.run_path(tmp_path, trial)
+    path.mkdir(parents=True)
+    rows = [{"iteration": 0, "wall_time_s": 0.0, "eval_mean_score": -4.0},
+            {"iteration": 1, "wall_time_s": 150.0, "eval_mean_score": -3.5},
+            {"iteration": 2, "wall_time_s": 299.0, "mean_score": -3.4}]
+    run_dir.rewrite_metrics(path, rows)
+    assert grid.final_evaluation(tmp_path, experiment, trial) is None  # 5 minutes not yet trained and evaluated
+    run_dir.rewrite_metrics(path, rows + [{"iteration": 3, "wall_time_s": 300.5, "eval_mean_score": -3.2}])
+    assert grid.final_evaluation(tmp_path, experiment, trial)["iteration"] == 3
+
+
 def test_sittings_over_other_environments_combine_into_one_grid():
     first = _experiment()
     second = _experiment(envs=("collect", "flp"), env_args=(("flp", (("num_facilities", 2),)),), eval_env_args=())
