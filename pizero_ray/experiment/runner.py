@@ -22,11 +22,40 @@ import os
 import time
 from pathlib import Path
 
+from ray.tune.experiment import Trial as TuneTrial
+from ray.tune.schedulers import FIFOScheduler
+
 from pizero_ray.experiment import grid
 
 TUNE_DIR = "tune"
 CEILING_FACTOR = 3.0
 CEILING_SLACK_S = 600.0
+
+
+class GridOrder(FIFOScheduler):
+    """First come, first served in the grid's own order (seed-major), also after a restore.
+
+    A restored experiment reloads its trials in no particular order, and Tune's
+    FIFO takes the first pending one it lists: a grid restored and cut short
+    again would leave holes in its first seeds. Pickled with the tuner, so a
+    restore keeps it.
+    """
+
+    def __init__(self, trial_names: list[str]):
+        super().__init__()
+        self._rank = {name: rank for rank, name in enumerate(trial_names)}
+
+    def _key(self, trial) -> int:
+        spec = trial.config["trial"]
+        return self._rank.get(grid.Trial(spec["env"], spec["method"], spec["seed"]).name, len(self._rank))
+
+    def choose_trial_to_run(self, tune_controller):
+        trials = tune_controller.get_trials()
+        for status in (TuneTrial.PENDING, TuneTrial.PAUSED):
+            waiting = [trial for trial in trials if trial.status == status]
+            if waiting:
+                return min(waiting, key=self._key)
+        return None
 
 
 def _trial_resources(cpus: int):
@@ -112,7 +141,8 @@ def _new_tuner(out: Path, experiment: grid.Experiment, trainable, compile_cache:
     return tune.Tuner(
         trainable,
         param_space={"trial": tune.grid_search(trial_configs)},
-        tune_config=tune.TuneConfig(trial_dirname_creator=lambda t: _trial_dirname(t.config["trial"])),
+        tune_config=tune.TuneConfig(trial_dirname_creator=lambda t: _trial_dirname(t.config["trial"]),
+                                    scheduler=GridOrder([t.name for t in experiment.trials])),
         run_config=tune.RunConfig(
             name=TUNE_DIR, storage_path=str(out), stop={"time_total_s": ceiling}, verbose=0,
             failure_config=tune.FailureConfig(max_failures=2)),

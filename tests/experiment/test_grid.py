@@ -106,3 +106,29 @@ def test_the_command_checks_every_trial_before_anything_starts(tmp_path, capsys)
     with pytest.raises(SystemExit):
         main(["experiment", "--envs", "tsp", "--budget-minutes", "1", "--out", str(out), "--env-arg", "levels=X"])
     assert "expected ENV:KEY=VALUE, got 'levels=X'" in capsys.readouterr().err
+
+
+def test_tune_takes_pending_trials_in_the_grids_order_whatever_order_it_lists_them():
+    from types import SimpleNamespace
+
+    from ray.tune.experiment import Trial as TuneTrial
+
+    from pizero_ray.experiment.runner import GridOrder
+
+    experiment = _experiment()
+    order = GridOrder([t.name for t in experiment.trials])
+
+    def listed(status, trial):
+        return SimpleNamespace(status=status, config={"trial": {"env": trial.env, "method": trial.method,
+                                                                "seed": trial.seed}}, name=trial.name)
+
+    trials = experiment.trials  # seed-major: tsp/pizero/seed0 first
+    shuffled = [listed(TuneTrial.PENDING, t) for t in reversed(trials[1:])] + [listed(TuneTrial.TERMINATED, trials[0])]
+    controller = SimpleNamespace(get_trials=lambda: shuffled)
+    assert order.choose_trial_to_run(controller).name == trials[1].name  # the first unfinished, not the first listed
+    for trial in shuffled:
+        trial.status = TuneTrial.TERMINATED if trial.status == TuneTrial.PENDING else trial.status
+    shuffled[0].status = TuneTrial.PAUSED
+    assert order.choose_trial_to_run(controller).name == trials[-1].name
+    shuffled[0].status = TuneTrial.TERMINATED
+    assert order.choose_trial_to_run(controller) is None
