@@ -7,7 +7,7 @@
 #
 #   scripts/gpu_grid.sh OUT MINUTES ENVS METHODS [PYTHON]
 #   e.g. scripts/gpu_grid.sh "$OUT" 4 tsp,collect pizero,es,alphazero,muzero python3
-set -uo pipefail
+set -euo pipefail  # a training that fails or times out ends its own job only: `wait` and the archive still run
 
 out=$1 minutes=$2 envs=$3 methods=$4 python=${5:-python3}
 IFS=, read -r -a env_list <<<"$envs"
