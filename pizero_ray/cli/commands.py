@@ -287,7 +287,11 @@ def _cmd_plot_experiment(args) -> int:
         from pizero_ray.cli.states import states_figure
 
         eval_env_args = {env: dict(values) for _, spec in sittings for env, values in spec.eval_env_args}
-        states_figure(shown, Path(args.out) / "states.png", env_args=eval_env_args)  # Sokoban on its valid levels
+        methods = sorted({report.METHOD_LABELS[path.parent.name] for path in shown.values()})
+        title = (f"Seed 0's {' / '.join(methods)} after {sittings[0][1].budget_minutes:g} training minutes: "
+                 "one evaluation episode each")
+        states_figure(shown, Path(args.out) / "states.png", env_args=eval_env_args,  # Sokoban on its valid levels
+                      title=title)
     print(json.dumps({"out": args.out, "results": len(summary["results"]), "states": sorted(shown)}))
     return 0
 

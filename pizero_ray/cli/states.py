@@ -45,8 +45,11 @@ def final_state_panel(env_name: str, run_path: Path, seed: int, env_args: dict |
     return Panel(caption.title(env_name), played.env.render(last.state), notes)
 
 
-def draw_panels(panels: list[Panel], out: Path) -> Path:
-    """The panels in a grid (matplotlib, Agg), each titled above and annotated below; written as PNG."""
+def draw_panels(panels: list[Panel], out: Path, title: str | None = None) -> Path:
+    """The panels in a grid (matplotlib, Agg), each titled above and annotated below; written as PNG.
+
+    ``title``: a line above the grid (the experiment's budget, say); the figure keeps its size.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -61,7 +64,11 @@ def draw_panels(panels: list[Panel], out: Path) -> Path:
         ax.imshow(panel.image, interpolation="antialiased")
         ax.set_title(panel.title, fontsize=13)
         ax.text(0.5, -0.03, "\n".join(panel.notes), transform=ax.transAxes, ha="center", va="top", fontsize=10)
-    fig.subplots_adjust(left=0.02, right=0.98, top=0.94, bottom=0.07, wspace=0.08, hspace=0.3)
+    top = 0.94
+    if title:
+        fig.suptitle(title, fontsize=12, y=0.995, va="top")
+        top -= 0.3 / (PANEL_INCHES[1] * rows)  # room for it: 0.3 inch
+    fig.subplots_adjust(left=0.02, right=0.98, top=top, bottom=0.07, wspace=0.08, hspace=0.3)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp")
     fig.savefig(tmp, dpi=DPI, format="png")  # no bbox_inches="tight": the size says the grid
@@ -71,14 +78,14 @@ def draw_panels(panels: list[Panel], out: Path) -> Path:
 
 
 def states_figure(run_paths: dict[str, Path], out: Path, seed: int = 0,
-                  env_args: dict[str, dict] | None = None) -> Path:
+                  env_args: dict[str, dict] | None = None, title: str | None = None) -> Path:
     """Up to six environments (env name -> run dir): each run's final state of one episode, in a grid PNG.
 
-    ``env_args``: env name -> the parameters to play it with, over the run's own.
+    ``env_args``: env name -> the parameters to play it with, over the run's own; ``title``: above the grid.
     """
     out = Path(out)
     if out.suffix.lower() != ".png":
         raise ConfigError(f"the states figure is a .png, got {out}")
     grid_shape(len(run_paths))  # the count is checked before any episode is played
     panels = [final_state_panel(name, Path(path), seed, (env_args or {}).get(name)) for name, path in run_paths.items()]
-    return draw_panels(panels, out)
+    return draw_panels(panels, out, title)

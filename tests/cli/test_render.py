@@ -104,8 +104,14 @@ def test_states_figure_draws_one_panel_per_environment(runs, tmp_path):
     out = states.states_figure(runs, tmp_path / "figs" / "states.png", seed=1)
     with Image.open(out) as image:
         width, height = image.size
+        untitled = np.asarray(image.convert("L"))
     inches = states.PANEL_INCHES
     assert (width, height) == (round(2 * inches[0] * states.DPI), round(inches[1] * states.DPI))  # 1 row, 2 panels
+    titled = states.states_figure(runs, tmp_path / "figs" / "titled.png", seed=1, title="after 3 training minutes")
+    with Image.open(titled) as image:
+        assert image.size == (width, height)  # the title takes room inside the same size
+        band = np.asarray(image.convert("L"))[: round(0.12 * states.DPI)]
+    assert band.min() < 128 and untitled[: round(0.12 * states.DPI)].min() > 128  # ink only where a title is
     panel = states.final_state_panel("collect", runs["collect"], seed=1)
     evaluated = evaluate_run(runs["collect"], episodes=1, seed=1)["mean_score"]
     assert panel.title == "Collect" and panel.notes == [f"score {caption.format_score(evaluated)}"]
