@@ -97,6 +97,13 @@ class Experiment:
             options["compile_cache"] = compile_cache
         return options
 
+    def final_evaluation(self, evaluated: list[dict]) -> dict | None:
+        """A trial's last evaluated metrics row (``run_dir.evaluated_rows``) once it has spent the budget;
+        None before (not started, or not done)."""
+        if not evaluated or evaluated[-1]["wall_time_s"] < 60.0 * self.budget_minutes:
+            return None
+        return evaluated[-1]
+
     def to_json(self) -> dict:
         return dataclasses.asdict(self)
 
@@ -112,16 +119,6 @@ class Experiment:
 
 def run_path(out: Path, trial: Trial) -> Path:
     return out / RUNS / trial.env / trial.method / f"seed{trial.seed}"
-
-
-def final_evaluation(out: Path, experiment: Experiment, trial: Trial) -> dict | None:
-    """The trial's last evaluated metrics row once it has spent its budget; None before (not started, or not done)."""
-    from pizero_ray.storage import run_dir as rundir
-
-    evaluated = rundir.evaluated_rows(run_path(out, trial))
-    if not evaluated or evaluated[-1]["wall_time_s"] < 60.0 * experiment.budget_minutes:
-        return None
-    return evaluated[-1]
 
 
 def check(experiment: Experiment) -> None:

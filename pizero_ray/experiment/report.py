@@ -37,9 +37,9 @@ def curves(out: Path, experiment: grid.Experiment) -> dict[tuple[str, str], np.n
     marks = marks_s(experiment)
     found: dict[tuple[str, str], list[np.ndarray]] = {}
     for trial in experiment.trials:
-        if grid.final_evaluation(out, experiment, trial) is None:
-            continue  # not started, or not finished: no final score yet
         rows = rundir.evaluated_rows(grid.run_path(out, trial))
+        if experiment.final_evaluation(rows) is None:
+            continue  # not started, or not finished: no final score yet
         times = np.array([row["wall_time_s"] for row in rows])
         scores = np.array([row["eval_mean_score"] for row in rows])
         found.setdefault((trial.env, trial.method), []).append(bands.curve_at(times, scores, marks))

@@ -155,10 +155,12 @@ def _trial_dirname(trial_config: dict) -> str:
 
 def _summary(out: Path, experiment: grid.Experiment, results) -> dict:
     """Each trial's final state from its run dir (the source of truth), and Tune's errors if any."""
+    from pizero_ray.storage import run_dir as rundir
+
     errors = [str(result.error).splitlines()[0] for result in results if result.error is not None]
     trials = {}
     for trial in experiment.trials:
-        final = grid.final_evaluation(out, experiment, trial)
+        final = experiment.final_evaluation(rundir.evaluated_rows(grid.run_path(out, trial)))
         trials[trial.name] = final and {"iteration": final["iteration"],
                                         "training_minutes": round(final["wall_time_s"] / 60.0, 3),
                                         "eval_mean_score": final["eval_mean_score"]}

@@ -61,16 +61,16 @@ def test_a_trial_has_a_final_evaluation_only_once_its_budget_is_spent(tmp_path):
     from pizero_ray.storage import run_dir
 
     experiment, trial = _experiment(), grid.Trial("tsp", "pizero", 0)
-    assert grid.final_evaluation(tmp_path, experiment, trial) is None  # not started
     path = grid.run_path(tmp_path, trial)
+    assert experiment.final_evaluation(run_dir.evaluated_rows(path)) is None  # not started
     path.mkdir(parents=True)
     rows = [{"iteration": 0, "wall_time_s": 0.0, "eval_mean_score": -4.0},
             {"iteration": 1, "wall_time_s": 150.0, "eval_mean_score": -3.5},
             {"iteration": 2, "wall_time_s": 299.0, "mean_score": -3.4}]
     run_dir.rewrite_metrics(path, rows)
-    assert grid.final_evaluation(tmp_path, experiment, trial) is None  # 5 minutes not yet trained and evaluated
+    assert experiment.final_evaluation(run_dir.evaluated_rows(path)) is None  # 5 minutes not yet trained and evaluated
     run_dir.rewrite_metrics(path, rows + [{"iteration": 3, "wall_time_s": 300.5, "eval_mean_score": -3.2}])
-    assert grid.final_evaluation(tmp_path, experiment, trial)["iteration"] == 3
+    assert experiment.final_evaluation(run_dir.evaluated_rows(path))["iteration"] == 3
 
 
 def test_sittings_over_other_environments_combine_into_one_grid():
