@@ -122,6 +122,21 @@ def require_path(env_name: str, name: str, value) -> None:
     require(isinstance(value, str) and bool(value), env_name, name, value, "a file or directory path")
 
 
+# ---------------------------------------------------------------- observation helpers
+
+
+def centred_window(plane: jax.Array, centre: jax.Array, radius: int, fill) -> jax.Array:
+    """The ``[2 radius + 1, 2 radius + 1]`` crop of a 2-D ``plane`` centred on the cell ``centre`` (row, column).
+
+    Cells off the plane read ``fill``. Jittable: the crop is a ``dynamic_slice``
+    of the plane padded by ``radius`` on every side, so the window's middle cell
+    is always ``plane[centre]``.
+    """
+    padded = jnp.pad(plane, radius, constant_values=fill)
+    side = 2 * radius + 1
+    return jax.lax.dynamic_slice(padded, (centre[0], centre[1]), (side, side))
+
+
 # ---------------------------------------------------------------- playing reference policies
 
 

@@ -22,12 +22,23 @@ nearest-coin walker leaves about 1.0 coins on average where the best walk
 leaves 0.4; with 8 coins both collect nearly everything (-0.12 and -0.01),
 so there would be little for planning to win.
 
-Observation vector (``2 (size-2)^2 + horizon`` floats): the interior's coin
-plane and agent plane (one-hot), flattened row-major, then the timestep
-one-hot. The wall plane is left out because it is the same in every state
-(the border is implicit in the planes' extent). Action features are identity
-one-hot rows: they describe the move, not where it leads, since whether the
-agent can look ahead by itself is what this project measures.
+Observation vector, by ``view``:
+
+* ``"absolute"`` (``2 (size-2)^2 + horizon`` floats): the interior's coin
+  plane and agent plane (one-hot), flattened row-major, then the timestep
+  one-hot. The wall plane is left out because it is the same in every state
+  (the border is implicit in the planes' extent).
+* ``"centred"`` (``2 (2 size - 5)^2 + horizon`` floats): a window centred on
+  the agent, just wide enough to show the whole interior from any cell
+  (``2 (size-2) - 1`` cells a side), as a coin plane and a wall plane (the
+  border and everything off the grid), then the timestep one-hot. The agent
+  is always the middle cell, so "a coin one step up" is the same input
+  wherever the agent stands: with one hidden layer over absolute planes that
+  rule has to be learnt once per cell.
+
+Action features are identity one-hot rows either way: they describe the
+move, not where it leads, since whether the agent can look ahead by itself is
+what this project measures.
 
 References, on the same initial states as the agent: the greedy nearest-coin
 walker (Manhattan distance, ties to the lowest row-major cell, vertical moves
@@ -51,7 +62,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, identity_action_features, play_policy, require_int
+from envs.base import (
+    Environment,
+    EnvSpec,
+    Observation,
+    centred_window,
+    identity_action_features,
+    play_policy,
+    require_choice,
+    require_int,
+)
 
 NUM_MOVES = 4
 # (row, column) offsets of the moves; row 0 is the top of the grid.
@@ -59,6 +79,7 @@ MOVES = np.array([[-1, 0], [0, 1], [1, 0], [0, -1]], dtype=np.int32)
 UP, RIGHT, DOWN, LEFT = range(NUM_MOVES)
 MAX_EXACT_COINS = 12
 RANDOM_WALKER_SEED = 0
+VIEWS = ("absolute", "centred")
 
 class CollectState(NamedTuple):
     agent: jax.Array  # [2] int32: (row, column) on the full grid, walls included
@@ -75,23 +96,37 @@ def border_walls(size: int) -> np.ndarray:
 
 
 
-def make(num_coins: int = 12, horizon: int = 20, size: int = 8) -> Environment:
+def absolute_planes(state: CollectState) -> jax.Array:
+    """The interior's coin plane, then its agent plane, flattened: [2 (size-2)^2]."""
+    size = state.coins.shape[-1]
+    agent = jnp.zeros((size, size), jnp.float32).at[state.agent[0], state.agent[1]].set(1.0)
+    return jnp.concatenate([state.coins[1:-1, 1:-1].reshape(-1).astype(jnp.float32), agent[1:-1, 1:-1].reshape(-1)])
+
+
+def centred_planes(state: CollectState) -> jax.Array:
+    """Coin and wall planes of the window centred on the agent, flattened: [2 (2 size - 5)^2]."""
+    size = state.coins.shape[-1]
+    radius = size - 3  # from a corner of the interior, the far corner is size - 3 cells away
+    coins = centred_window(state.coins, state.agent, radius, False)
+    walls = centred_window(jnp.asarray(border_walls(size)), state.agent, radius, True)
+    return jnp.concatenate([coins.reshape(-1), walls.reshape(-1)]).astype(jnp.float32)
+
+
+def make(num_coins: int = 12, horizon: int = 20, size: int = 8, view: str = "absolute") -> Environment:
     require_int("collect", "size", size, 4)  # an interior of at least 2x2: room for the agent and a coin
     interior = size - 2
     require_int("collect", "num_coins", num_coins, 1, interior * interior - 1)
     require_int("collect", "horizon", horizon, 1)
+    require_choice("collect", "view", view, VIEWS)
     walls = jnp.asarray(border_walls(size))
     interior_cells = jnp.asarray([(r, c) for r in range(1, size - 1) for c in range(1, size - 1)], dtype=jnp.int32)
     moves = jnp.asarray(MOVES)
+    planes = centred_planes if view == "centred" else absolute_planes
+    planes_size = 2 * (2 * interior - 1) ** 2 if view == "centred" else 2 * interior * interior
 
     def observe(state: CollectState) -> Observation:
-        coins = state.coins[1:-1, 1:-1].reshape(-1)
-        agent = jnp.zeros((size, size), jnp.float32).at[state.agent[0], state.agent[1]].set(1.0)
-        vector = jnp.concatenate([
-            coins.astype(jnp.float32),
-            agent[1:-1, 1:-1].reshape(-1),
-            jax.nn.one_hot(state.t, horizon),  # all zeros once the episode is over
-        ])
+        timestep = jax.nn.one_hot(state.t, horizon)  # all zeros once the episode is over
+        vector = jnp.concatenate([planes(state), timestep])
         return Observation(vector, identity_action_features(NUM_MOVES), jnp.ones((NUM_MOVES,), bool))
 
     def reset(key: jax.Array) -> tuple[CollectState, Observation]:
@@ -111,7 +146,7 @@ def make(num_coins: int = 12, horizon: int = 20, size: int = 8) -> Environment:
         return state, observe(state), reward, done
 
     spec = EnvSpec(
-        observation_size=2 * interior * interior + horizon,
+        observation_size=planes_size + horizon,
         horizon=horizon,
         num_actions=NUM_MOVES,
         action_feature_size=NUM_MOVES,

@@ -21,8 +21,16 @@ array [L, 10, 10] inside the program and ``reset`` samples a level uniformly
 with ``jax.random.randint``. (The bank is a compile-time constant, 100 bytes
 a level: fine for the 20k-level subsets used here; split larger sets.)
 
-Observation: four binary 10x10 planes (wall, goal, box, player; floor is "not
-wall") flattened, then the fraction of the horizon elapsed: 401 numbers.
+Observation, by ``view``, then the fraction of the horizon elapsed:
+
+* ``"absolute"``: four binary 10x10 planes (wall, goal, box, player; floor
+  is "not wall") flattened: 401 numbers.
+* ``"centred"``: wall, goal and box planes of the ``2 view_radius + 1``
+  square window centred on the player (off the grid reads as wall), so the
+  player is always the middle cell and "a wall just above" is the same input
+  wherever the player stands: ``3 (2 view_radius + 1)^2 + 1`` numbers (244
+  at the default radius 4, which shows most of the room; 9 shows all of it
+  from anywhere).
 Action features are identity rows: they name the move and say nothing about
 its consequences, so any lookahead has to come from the agent.
 
@@ -51,8 +59,10 @@ from envs.base import (
     Environment,
     EnvSpec,
     Observation,
+    centred_window,
     identity_action_features,
     play_policy,
+    require_choice,
     require_int,
     require_path,
 )
@@ -61,6 +71,7 @@ ROOM_SIZE = boxoban.ROOM_SIZE
 MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int32)  # up, down, left, right (row, column)
 ACTION_NAMES = ("up", "down", "left", "right")
 NUM_PLANES = 4  # wall, goal, box, player
+VIEWS = ("absolute", "centred")
 DEFAULT_HORIZON = 50
 RANDOM_AGENT_SEED = 20170801  # fixed: the random reference is the same on every evaluation
 
@@ -117,6 +128,18 @@ def move(state: SokobanState, action: jax.Array) -> SokobanState:
     return state._replace(boxes=boxes, player=player)
 
 
+def absolute_planes(state: SokobanState) -> jax.Array:
+    """The wall, goal, box and player planes of the room, flattened: [400]."""
+    return jnp.stack([state.walls, state.goals, state.boxes, _cell(state.player)]).astype(jnp.float32).reshape(-1)
+
+
+def centred_planes(state: SokobanState, radius: int) -> jax.Array:
+    """The wall, goal and box planes of the window centred on the player, flattened: [3 (2 radius + 1)^2]."""
+    window = [centred_window(plane, state.player, radius, fill)
+              for plane, fill in ((state.walls, True), (state.goals, False), (state.boxes, False))]
+    return jnp.stack(window).astype(jnp.float32).reshape(-1)
+
+
 def make(
     levels: str | None = None,
     horizon: int = DEFAULT_HORIZON,
@@ -124,17 +147,21 @@ def make(
     num_boxes: int = 4,
     generator_seed: int = 0,
     pull_rounds: int = 8,
+    view: str = "absolute",
+    view_radius: int = 4,
 ) -> Environment:
     require_int("sokoban", "horizon", horizon, 1)
+    require_choice("sokoban", "view", view, VIEWS)
+    require_int("sokoban", "view_radius", view_radius, 1, ROOM_SIZE - 1)
+    planes = functools.partial(centred_planes, radius=view_radius) if view == "centred" else absolute_planes
+    planes_size = 3 * (2 * view_radius + 1) ** 2 if view == "centred" else NUM_PLANES * ROOM_SIZE * ROOM_SIZE
     bank = level_bank(levels, num_levels, num_boxes, generator_seed, pull_rounds)
     codes = jnp.asarray(bank)
     num_bank_levels = bank.shape[0]
 
     def observe(state: SokobanState) -> Observation:
-        player = _cell(state.player)
-        planes = jnp.stack([state.walls, state.goals, state.boxes, player]).astype(jnp.float32)
         elapsed = (state.t / horizon).astype(jnp.float32)
-        vector = jnp.concatenate([planes.reshape(-1), elapsed[None]])
+        vector = jnp.concatenate([planes(state), elapsed[None]])
         return Observation(vector, identity_action_features(len(MOVES)), jnp.ones((len(MOVES),), dtype=bool))
 
     def reset(key: jax.Array) -> tuple[SokobanState, Observation]:
@@ -153,7 +180,7 @@ def make(
         return state, observe(state), reward, done
 
     spec = EnvSpec(
-        observation_size=NUM_PLANES * ROOM_SIZE * ROOM_SIZE + 1,
+        observation_size=planes_size + 1,
         horizon=horizon,
         num_actions=len(MOVES),
         action_feature_size=len(MOVES),

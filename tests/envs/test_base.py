@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import envs
-from envs.base import play_policy, require, require_bool, require_choice, require_int, require_path
+from envs.base import centred_window, play_policy, require, require_bool, require_choice, require_int, require_path
 
 # Short episodes where the horizon is a parameter: these tests are about the protocol, not the game.
 SMALL = {"2048": {"horizon": 8}, "pacman": {"horizon": 8}, "pacman-po": {"horizon": 8}, "sokoban": {"num_levels": 20}}
@@ -158,3 +158,11 @@ def test_parameter_checks_pass_good_values_and_keep_odd_values_on_one_short_line
     with pytest.raises(ValueError) as error:
         require_int("e", "n", np.zeros((20, 20)), 1)  # its repr spans 20 lines
     assert "\n" not in str(error.value) and len(str(error.value)) < 150
+
+
+def test_centred_window_puts_the_centre_in_the_middle_and_fills_off_the_plane():
+    plane = jnp.arange(16).reshape(4, 4)
+    window = jax.jit(centred_window, static_argnums=(2,))(plane, jnp.array([0, 3]), 1, -1)
+    np.testing.assert_array_equal(window, [[-1, -1, -1], [2, 3, -1], [6, 7, -1]])
+    middle = centred_window(plane, jnp.array([2, 1]), 1, -1)
+    np.testing.assert_array_equal(middle, [[4, 5, 6], [8, 9, 10], [12, 13, 14]])

@@ -151,6 +151,29 @@ def test_render_draws_walls_coins_and_agent(env):
     assert centre(4, 4) == collect.FLOOR_COLOUR
 
 
+def test_centred_view_shows_the_agent_in_the_middle_of_coins_and_walls():
+    env = envs.make("collect", view="centred")
+    assert env.spec.observation_size == 2 * 11 * 11 + 20
+    state = _state((1, 2), [(1, 3), (6, 6)], t=3)
+    vector = np.asarray(env.step(state, jnp.int32(DOWN))[1].vector)  # the agent moves to (2, 2) at t = 4
+    assert vector.shape == (262,)
+    coins, walls, timestep = vector[:121].reshape(11, 11), vector[121:242].reshape(11, 11), vector[242:]
+    assert timestep.argmax() == 4 and timestep.sum() == 1
+    # offsets from the middle cell (5, 5): the coin at (1, 3) is one up and one right, (6, 6) four down, four right
+    assert coins.sum() == 2 and coins[4, 6] == 1 and coins[9, 9] == 1
+    # the border row 0 is two up; everything above it is off the grid, so wall too
+    assert walls[:4].all() and not walls[4:10, 4:10].any() and walls[:, :4].all() and walls[10].all()
+
+
+def test_centred_view_is_the_same_input_wherever_the_agent_stands():
+    env = envs.make("collect", view="centred")
+    here = env.step(_state((2, 2), [(2, 3)]), jnp.int32(UP))[1].vector  # agent (1, 2), coin one down, one right
+    there = env.step(_state((4, 4), [(4, 5)]), jnp.int32(UP))[1].vector  # agent (3, 4), coin one down, one right
+    coins = lambda v: np.asarray(v[:121]).reshape(11, 11)
+    np.testing.assert_array_equal(coins(here), coins(there))
+    assert coins(here)[6, 6] == 1 and coins(here).sum() == 1
+
+
 @pytest.mark.parametrize(
     "args, named",
     [
@@ -162,6 +185,7 @@ def test_render_draws_walls_coins_and_agent(env):
         ({"horizon": True}, "collect: horizon must be an integer at least 1, got True"),
         ({"size": "8"}, "collect: size must be an integer at least 4, got '8'"),
         ({"coins": 3}, "bad parameters for environment 'collect'"),
+        ({"view": "egocentric"}, "collect: view must be one of absolute, centred, got 'egocentric'"),
     ],
 )
 def test_bad_parameters_are_one_line_errors(args, named):

@@ -252,6 +252,26 @@ def test_spec_does_not_depend_on_the_levels(env, tmp_path):
     assert envs.make("sokoban", levels=str(path)).spec == env.spec
 
 
+def test_centred_view_shows_walls_goals_and_boxes_around_the_player():
+    env = envs.make("sokoban", num_levels=5, view="centred", view_radius=2)
+    assert env.spec.observation_size == 3 * 25 + 1
+    state = _state(ONE_BOX_NEXT_TO_GOAL)  # player (3, 3), box (3, 4), goal (3, 5)
+    _, obs, _, _ = env.step(state, jnp.int32(UP))  # the player moves to (2, 3)
+    walls, goals, boxes = np.asarray(obs.vector[:-1]).reshape(3, 5, 5)
+    assert walls[0].all() and walls.sum() == 5  # the top wall (row 0) is two rows up, nothing else
+    assert boxes.sum() == 1 and boxes[3, 3] == 1  # one down, one right
+    assert goals.sum() == 1 and goals[3, 4] == 1  # one down, two right
+    assert float(obs.vector[-1]) == pytest.approx(1 / 50)
+
+
+def test_centred_view_reads_off_the_grid_as_wall():
+    env = envs.make("sokoban", num_levels=5, view="centred", view_radius=1)
+    state = _state(NO_BORDER)  # player (0, 2), box (0, 3), no walls
+    walls, _, boxes = np.asarray(env.step(state, jnp.int32(LEFT))[1].vector[:-1]).reshape(3, 3, 3)
+    np.testing.assert_array_equal(walls, [[1, 1, 1], [0, 0, 0], [0, 0, 0]])  # the player is now at (0, 1)
+    assert boxes.sum() == 0  # the box at (0, 3) is two to the right: outside a radius of 1
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
@@ -266,6 +286,8 @@ def test_spec_does_not_depend_on_the_levels(env, tmp_path):
         ({"levels": ""}, "sokoban: levels must be a file or directory path, got ''"),
         ({"horizon": 50.0}, "sokoban: horizon must be an integer at least 1, got 50.0"),
         ({"size": 3}, "bad parameters for environment 'sokoban'"),
+        ({"view": "local"}, "sokoban: view must be one of absolute, centred, got 'local'"),
+        ({"view": "centred", "view_radius": 10}, "sokoban: view_radius must be an integer in 1..9, got 10"),
     ],
 )
 def test_bad_parameters_are_one_line_errors(args, message):
