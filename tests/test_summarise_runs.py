@@ -1,0 +1,52 @@
+"""scripts/summarise_runs.py: the docs' JSON summaries come from run dirs and eval JSON, figures unchanged."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+from pizero_ray.config import build_config
+from pizero_ray.storage import run_dir
+
+SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "summarise_runs.py"
+
+
+@pytest.fixture(scope="module")
+def summarise():
+    spec = importlib.util.spec_from_file_location("summarise_runs", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _run(path: Path, scores: list[float]) -> None:
+    run_dir.write_config(path, build_config("tiny", env="collect", planner="none", env_args={"view": "centred"}))
+    rows = [{"iteration": i, "iteration_time_s": 0.5 + i, "wall_time_s": 2.0 * i, "mean_score": -9.0,
+             **({"eval_mean_score": score} if score is not None else {})} for i, score in enumerate(scores, 1)]
+    (path / run_dir.METRICS_FILE).write_text("".join(json.dumps(row) + "\n" for row in rows))
+
+
+def test_summary_keeps_the_curve_times_and_a_held_out_interval(summarise, tmp_path):
+    _run(tmp_path / "a", [-9.5, None, -7.25])
+    evaluation = {"episodes": 100, "seed": 0, "mean_score": -5.0, "std_score": 2.0, "greedy_score": -1.0,
+                  "env": "collect", "iteration": 3}
+    (tmp_path / "a.json").write_text(json.dumps(evaluation))
+    _run(tmp_path / "b", [-10.0])
+    out = tmp_path / "summary.json"
+    assert summarise.main(["--out", str(out), "--command", "pizero train ...",
+                           f"centred={tmp_path / 'a'}:{tmp_path / 'a.json'}", f"other={tmp_path / 'b'}"]) == 0
+    record = json.loads(out.read_text())
+    assert record["command"] == "pizero train ..."
+    a, b = record["runs"]["centred"], record["runs"]["other"]
+    assert a["iterations"] == 3 and a["training_s"] == 6.0 and a["median_iteration_s"] == 2.5
+    assert a["curve_iteration_score_wall_s"] == [[1, -9.5, 2.0], [3, -7.25, 6.0]]
+    assert a["env_args"] == [["view", "centred"]] and a["planner"] == "none"
+    assert a["held_out"]["ci95"] == [-5.392, -4.608] and a["held_out"]["references"] == {"greedy_score": -1.0}
+    assert "held_out" not in b and b["iterations"] == 1
+
+
+def test_a_run_without_a_label_is_a_one_line_error(summarise, tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        summarise.main(["--out", str(tmp_path / "x.json"), "--command", "c", str(tmp_path)])
+    assert "must read LABEL=RUN_DIR[:EVAL_JSON], got" in capsys.readouterr().err
