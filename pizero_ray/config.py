@@ -213,6 +213,9 @@ def largest_divisor_at_most(number: int, limit: int) -> int:
 def build_config(preset: str = "default", **overrides: Any) -> Config:
     """Global preset, the environment's overrides for it, the method's, then explicit ones (pizero_ray.presets).
 
+    Explicit ``env_args`` change only the environment parameters they name; the
+    preset's others stay.
+
     Without an explicit ``chunk_size`` the chunk is the largest divisor of the
     population not above the preset's chunk size (32 by default).
     """
@@ -220,8 +223,11 @@ def build_config(preset: str = "default", **overrides: Any) -> Config:
         raise ConfigError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
     explicit = {k: v for k, v in overrides.items() if v is not None}
     method = explicit.get("method", Config.method)
-    values = {**PRESETS[preset], **env_preset(explicit.get("env", Config.env), preset),
-              **METHOD_PRESETS.get(method, {}), **explicit}
+    preset_values = {**PRESETS[preset], **env_preset(explicit.get("env", Config.env), preset),
+                     **METHOD_PRESETS.get(method, {})}
+    values = {**preset_values, **explicit}
+    if "env_args" in preset_values and "env_args" in explicit:  # --env-arg changes the preset's keys it names
+        values["env_args"] = {**dict(preset_values["env_args"]), **dict(explicit["env_args"])}
     population = values.get("population", Config.population)
     if "chunk_size" not in explicit and isinstance(population, int) and population > 0:
         # An unchosen chunk size follows the population (24 pairs: one chunk of 24, not an error);

@@ -67,20 +67,26 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
     ("paper", {"env": "2048"}, {**PAPER, "env": "2048", "env_args": {"horizon": 1000}}),
     ("paper", {"env": "pacman"}, {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}}),
     ("default", {"env": "pacman-po"}, {"env": "pacman-po", "population": 128}),
-    ("default", {"env": "sokoban"}, {"env": "sokoban", "population": 64, "chunk_size": 16}),
+    ("default", {"env": "sokoban"}, {"env": "sokoban", "population": 64, "chunk_size": 16,
+                                     "env_args": {"view": "centred"}}),
+    ("default", {"env": "collect"}, {"env": "collect", "env_args": {"view": "centred"}}),
     ("paper", {"env": "sokoban"}, {**PAPER, "env": "sokoban"}),
     ("tiny", {"env": "sokoban"}, {**TINY, "env": "sokoban"}),
     ("default", {"env": "flp-mean"}, {"env": "flp-mean", "episodes_per_member": 3}),
     ("paper", {"env": "collect"}, {**PAPER, "env": "collect"}),
-    # explicit values beat the environment's preset; --env-arg replaces its env_args as a whole
+    # explicit values beat the environment's preset; --env-arg changes only the parameters it names
     ("paper", {"env": "2048", "env_args": {"tile_encoding": "one_hot"}},
-     {**PAPER, "env": "2048", "env_args": {"tile_encoding": "one_hot"}}),
-    ("default", {"env": "sokoban", "population": 48}, {"env": "sokoban", "population": 48, "chunk_size": 16}),
+     {**PAPER, "env": "2048", "env_args": {"horizon": 1000, "tile_encoding": "one_hot"}}),
+    ("paper", {"env": "2048", "env_args": {"horizon": 50}}, {**PAPER, "env": "2048", "env_args": {"horizon": 50}}),
+    ("default", {"env": "sokoban", "env_args": (("levels", "/b/train"), ("view", "absolute"))},
+     {"env": "sokoban", "population": 64, "chunk_size": 16, "env_args": {"levels": "/b/train", "view": "absolute"}}),
+    ("default", {"env": "sokoban", "population": 48}, {"env": "sokoban", "population": 48, "chunk_size": 16,
+                                                       "env_args": {"view": "centred"}}),
     ("default", {"env": "flp", "episodes_per_member": 2}, {"env": "flp", "episodes_per_member": 2}),
     ("paper", {"env": "pacman", "population": 600, "seed": 7},
      {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}, "population": 600, "seed": 7}),
 ])
-def test_presets_give_the_configs_they_gave_before_they_moved(preset, overrides, differences):
+def test_presets_build_these_configs(preset, overrides, differences):
     assert json.loads(build_config(preset, **overrides).to_json()) == {**OLD_DEFAULTS, **differences}
 
 
