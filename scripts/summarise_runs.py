@@ -39,13 +39,14 @@ def summary(path: Path, eval_path: Path | None) -> dict:
     config = run_dir.read_config(path)
     rows = run_dir.read_metrics(path)
     evals = run_dir.evaluated_rows(path)
+    times = [r["iteration_time_s"] for r in rows if "iteration_time_s" in r]  # not on the untrained agent's row
     out = {
         "env": config.env, "method": config.method, "planner": config.planner, "env_args": config.env_args,
         "seed": config.seed, "population": config.population, "learning_rate": config.learning_rate,
         "sigma": config.sigma, "perturbation_rank": config.perturbation_rank,
         "iterations": rows[-1]["iteration"] if rows else 0,
         "training_s": round(rows[-1]["wall_time_s"], 1) if rows else 0.0,
-        "median_iteration_s": round(statistics.median(r["iteration_time_s"] for r in rows), 3) if rows else None,
+        "median_iteration_s": round(statistics.median(times), 3) if times else None,
         "curve_iteration_score_wall_s": [[r["iteration"], r["eval_mean_score"], round(r["wall_time_s"], 1)]
                                          for r in evals],
     }
@@ -68,8 +69,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"a run must read LABEL=RUN_DIR[:EVAL_JSON], got {spec!r}")
         runs[label] = summary(Path(path), Path(eval_path) if eval_path else None)
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
-    record = {"command": args.command, "commit": commit, "machine": "2 CPU cores, 2 workers, nothing else running",
-              "runs": runs}
+    record = {"command": args.command, "summarised_at_commit": commit,
+              "machine": "2 CPU cores, 2 workers, nothing else running", "runs": runs}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(record, indent=1) + "\n")
     return 0

@@ -169,6 +169,23 @@ def test_run_options_come_from_their_declared_defaults_and_flags():
     assert options.eval_every_minutes == 0.5 and options.eval_env_args == (("horizon", 60), ("levels", "valid"))
 
 
+def test_a_resume_keeps_the_stored_learning_curve_schedule_unless_an_option_is_given(tmp_path):
+    from pizero_ray.storage import run_dir
+
+    args = cli._parser().parse_args(["train", "--run-dir", "unused", "--eval-every", "25", "--eval-episodes", "64",
+                                     "--eval-env-arg", "levels=valid"])
+    trained = cli._run_options(args, 100)
+    run_dir.write_evaluation_schedule(tmp_path, trained.evaluation_schedule())
+    kept = run_dir.read_evaluation_schedule(tmp_path)
+    assert kept == {"eval_every": 25, "eval_every_minutes": None, "eval_episodes": 64,
+                    "eval_env_args": [["levels", "valid"]]}
+    resumed = cli._run_options(cli._parser().parse_args(["resume", "unused", "--minutes", "30"]), None, kept)
+    assert [getattr(resumed, name) for name in kept] == [getattr(trained, name) for name in kept]
+    args = cli._parser().parse_args(["resume", "unused", "--minutes", "30", "--eval-every", "0"])
+    assert cli._run_options(args, None, kept).eval_every == 0  # a given option wins
+    assert run_dir.read_evaluation_schedule(tmp_path / "older") == {}  # run dirs from before: today's defaults
+
+
 @pytest.mark.parametrize("values, message", [
     ({"min_fraction": 0.0}, "--min-fraction must be in (0, 1], got 0.0"),
     ({"min_fraction": 1.5}, "--min-fraction must be in (0, 1], got 1.5"),

@@ -24,7 +24,8 @@ def _run(path: Path, scores: list[float]) -> None:
     run_dir.write_config(path, build_config("tiny", env="collect", planner="none", env_args={"view": "centred"}))
     rows = [{"iteration": i, "iteration_time_s": 0.5 + i, "wall_time_s": 2.0 * i, "mean_score": -9.0,
              **({"eval_mean_score": score} if score is not None else {})} for i, score in enumerate(scores, 1)]
-    (path / run_dir.METRICS_FILE).write_text("".join(json.dumps(row) + "\n" for row in rows))
+    untrained = {"iteration": 0, "wall_time_s": 0.0, "eval_mean_score": -11.0}  # as the driver writes it
+    (path / run_dir.METRICS_FILE).write_text("".join(json.dumps(row) + "\n" for row in [untrained, *rows]))
 
 
 def test_summary_keeps_the_curve_times_and_a_held_out_interval(summarise, tmp_path):
@@ -40,7 +41,7 @@ def test_summary_keeps_the_curve_times_and_a_held_out_interval(summarise, tmp_pa
     assert record["command"] == "pizero train ..."
     a, b = record["runs"]["centred"], record["runs"]["other"]
     assert a["iterations"] == 3 and a["training_s"] == 6.0 and a["median_iteration_s"] == 2.5
-    assert a["curve_iteration_score_wall_s"] == [[1, -9.5, 2.0], [3, -7.25, 6.0]]
+    assert a["curve_iteration_score_wall_s"] == [[0, -11.0, 0.0], [1, -9.5, 2.0], [3, -7.25, 6.0]]
     assert a["env_args"] == [["view", "centred"]] and a["planner"] == "none"
     assert a["held_out"]["ci95"] == [-5.392, -4.608] and a["held_out"]["references"] == {"greedy_score": -1.0}
     assert "held_out" not in b and b["iterations"] == 1

@@ -307,13 +307,13 @@ def _train_config(args):
     return config
 
 
-def _run_options(args, iterations: int | None):
-    """The run options given (RunOptions validates them: a bad one is a one-line ConfigError)."""
+def _run_options(args, iterations: int | None, kept: dict | None = None):
+    """The run options given, over ``kept`` ones (RunOptions validates them: a bad one is a one-line ConfigError)."""
     from pizero_ray.trainer.options import RunOptions
 
     # An empty text (--compile-cache '', --address '') means the default, as an absent option does.
     given = {name: value for name, value in _given(RunOptions, args).items() if value != ""}
-    return RunOptions.create(**{**given, "iterations": iterations})
+    return RunOptions.create(**{**(kept or {}), **given, "iterations": iterations})
 
 
 def _existing_run(path_text: str) -> Path:
@@ -404,7 +404,8 @@ def _cmd_train(args) -> int:
     # With a wall-clock budget and no iteration target, the budget alone says when to stop.
     iterations = args.iterations or (None if args.minutes else DEFAULT_ITERATIONS)
     options = _run_options(args, iterations)
-    rundir.write_config(run_path, config)  # the last step before training: all input was valid
+    rundir.write_config(run_path, config)  # the last steps before training: all input was valid
+    rundir.write_evaluation_schedule(run_path, options.evaluation_schedule())
     return _run_training(run_path, config, options, args.no_progress)
 
 
@@ -453,7 +454,10 @@ def _cmd_resume(args) -> int:
     if args.iterations is None and args.minutes is None:
         raise UsageError("resume needs --iterations N (the total number of iterations to reach), "
                          "--minutes M (the run's total wall-clock budget) or both")
-    options = dataclasses.replace(_run_options(args, args.iterations), restart=args.restart)
+    # The learning curve goes on as the run dir says unless an --eval-* option is given.
+    kept = rundir.read_evaluation_schedule(run_path)
+    options = dataclasses.replace(_run_options(args, args.iterations, kept), restart=args.restart)
+    rundir.write_evaluation_schedule(run_path, options.evaluation_schedule())
     return _run_training(run_path, config, options, args.no_progress)
 
 

@@ -87,9 +87,10 @@ def train_trial(config: dict) -> None:
     trial = grid.Trial(trial_config["env"], trial_config["method"], trial_config["seed"])
     path = grid.run_path(out, trial)
     config = experiment.config(trial)
+    options = RunOptions.create(**experiment.run_options(trial, trial_config.get("compile_cache")))
     if not (path / rundir.CONFIG_FILE).exists():
         rundir.write_config(path, config)
-    options = RunOptions.create(**experiment.run_options(trial, trial_config.get("compile_cache")))
+        rundir.write_evaluation_schedule(path, options.evaluation_schedule())  # a later pizero resume keeps it
 
     def report(row: dict) -> None:
         if "eval_mean_score" in row:

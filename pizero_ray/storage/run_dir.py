@@ -1,4 +1,8 @@
-"""A run directory: config.json, metrics.jsonl and checkpoints/.
+"""A run directory: config.json, evaluation.json, metrics.jsonl and checkpoints/.
+
+evaluation.json keeps the learning curve's schedule (how often, how many
+episodes, on which environment parameters), so that ``pizero resume`` goes on
+drawing the same curve unless told otherwise.
 
 Nothing here deletes a row: those a resume takes out of metrics.jsonl go to
 metrics-dropped.jsonl.
@@ -19,6 +23,7 @@ from pizero_ray.config import Config, ConfigError
 CONFIG_FILE = "config.json"
 METRICS_FILE = "metrics.jsonl"
 DROPPED_METRICS_FILE = "metrics-dropped.jsonl"  # rows a resume or restart took out of metrics.jsonl
+EVALUATION_FILE = "evaluation.json"
 
 
 def resolve(run_dir: str | os.PathLike) -> Path:
@@ -30,6 +35,25 @@ def write_config(run_dir: Path, config: Config) -> None:
     tmp = run_dir / (CONFIG_FILE + ".tmp")
     tmp.write_text(config.to_json() + "\n")
     os.replace(tmp, run_dir / CONFIG_FILE)  # never a half-written config
+
+
+def write_evaluation_schedule(run_dir: Path, schedule: dict) -> None:
+    """The learning curve's settings by RunOptions field name (eval_every, eval_episodes, ...)."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    tmp = run_dir / (EVALUATION_FILE + ".tmp")
+    tmp.write_text(json.dumps(schedule, sort_keys=True) + "\n")
+    os.replace(tmp, run_dir / EVALUATION_FILE)
+
+
+def read_evaluation_schedule(run_dir: Path) -> dict:
+    """What ``write_evaluation_schedule`` wrote; {} for a run dir without one (written before it existed)."""
+    path = run_dir / EVALUATION_FILE
+    if not path.is_file():
+        return {}
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as error:
+        raise ConfigError(f"{path} is not valid JSON: {error}") from None
 
 
 def read_config(run_dir: Path) -> Config:

@@ -15,6 +15,9 @@ from pizero_ray.config import ConfigError
 from pizero_ray.settings import check_minimums, lookup, setting
 from pizero_ray.trainer import compile_cache
 
+# The learning curve's settings: a run dir keeps them (evaluation.json) and a resume goes on with them.
+EVALUATION_FIELDS = ("eval_every", "eval_every_minutes", "eval_episodes", "eval_env_args")
+
 
 def _flag(cls: type, name: str) -> str:
     return lookup(cls, name).flag
@@ -114,6 +117,11 @@ class RunOptions:
         self.pool.validate()
         return self
 
+    def evaluation_schedule(self) -> dict:
+        """The learning curve's settings by field name, JSON-ready (what a resume keeps unless told otherwise)."""
+        return {name: [list(pair) for pair in getattr(self, name)] if name == "eval_env_args" else getattr(self, name)
+                for name in EVALUATION_FIELDS}
+
     @classmethod
     def create(cls, **values: Any) -> "RunOptions":
         """RunOptions from the fields of RunOptions and of its PoolOptions, given by name side by side."""
@@ -121,7 +129,7 @@ class RunOptions:
         unknown = set(values) - pool_fields - {f.name for f in dataclasses.fields(cls)}
         if unknown:
             raise TypeError(f"RunOptions has no option {', '.join(sorted(unknown))}")
-        if isinstance(values.get("eval_env_args"), dict):  # KEY=VALUE pairs from the command line
-            values["eval_env_args"] = tuple(sorted(values["eval_env_args"].items()))
+        if isinstance(values.get("eval_env_args"), (dict, list)):  # KEY=VALUE pairs: command line or JSON
+            values["eval_env_args"] = tuple(sorted(dict(values["eval_env_args"]).items()))
         pool = PoolOptions(**{k: v for k, v in values.items() if k in pool_fields})
         return cls(pool=pool, **{k: v for k, v in values.items() if k not in pool_fields})

@@ -47,13 +47,16 @@ def test_a_baseline_trains_resumes_and_is_evaluated_rendered_and_inspected(tmp_p
     resume in tests/baselines/test_learner.py, and it acts through the same commands.)"""
     method, run = "alphazero", tmp_path / "run"
     args = ["--method", method, "--env", "flp", *TINY_BASELINE]
-    assert main(["train", "--run-dir", str(run), "--iterations", "2", *args]) == 0
+    curve = ["--eval-every", "3", "--eval-episodes", "2"]
+    assert main(["train", "--run-dir", str(run), "--iterations", "2", *args, *curve]) == 0
     first = _json_line(capsys.readouterr().out)
     assert first["iteration"] == 2 and first["workers_killed"] == 0
     assert main(["resume", str(run), "--iterations", "3", "--no-progress"]) == 0
     assert _json_line(capsys.readouterr().out)["iteration"] == 3
     rows = rundir.read_metrics(run)
-    assert [row["iteration"] for row in rows] == [1, 2, 3]
+    assert [row["iteration"] for row in rows] == [0, 1, 2, 3]  # the untrained agent's evaluation first
+    assert "eval_mean_score" in rows[3]  # the resume kept --eval-every 3
+    rows = rows[1:]
     assert {"mean_score", "loss", "policy_loss", "value_loss", "wall_time_s"} <= set(rows[-1])
     assert rows[2]["wall_time_s"] >= rows[1]["wall_time_s"] > 0  # training time carries on across the resume
     events = scalars(run)  # TensorBoard mirrors the metrics, across the resume too
