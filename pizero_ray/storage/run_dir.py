@@ -30,19 +30,21 @@ def resolve(run_dir: str | os.PathLike) -> Path:
     return Path(run_dir).expanduser().absolute()
 
 
-def write_config(run_dir: Path, config: Config) -> None:
+def _replace_file(run_dir: Path, name: str, text: str) -> None:
+    """Writes ``run_dir/name`` whole: a temporary file renamed into place, so never half-written."""
     run_dir.mkdir(parents=True, exist_ok=True)
-    tmp = run_dir / (CONFIG_FILE + ".tmp")
-    tmp.write_text(config.to_json() + "\n")
-    os.replace(tmp, run_dir / CONFIG_FILE)  # never a half-written config
+    tmp = run_dir / (name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, run_dir / name)
+
+
+def write_config(run_dir: Path, config: Config) -> None:
+    _replace_file(run_dir, CONFIG_FILE, config.to_json() + "\n")
 
 
 def write_evaluation_schedule(run_dir: Path, schedule: dict) -> None:
     """The learning curve's settings by RunOptions field name (eval_every, eval_episodes, ...)."""
-    run_dir.mkdir(parents=True, exist_ok=True)
-    tmp = run_dir / (EVALUATION_FILE + ".tmp")
-    tmp.write_text(json.dumps(schedule, sort_keys=True) + "\n")
-    os.replace(tmp, run_dir / EVALUATION_FILE)
+    _replace_file(run_dir, EVALUATION_FILE, json.dumps(schedule, sort_keys=True) + "\n")
 
 
 def read_evaluation_schedule(run_dir: Path) -> dict:

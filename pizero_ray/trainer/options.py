@@ -118,9 +118,8 @@ class RunOptions:
         return self
 
     def evaluation_schedule(self) -> dict:
-        """The learning curve's settings by field name, JSON-ready (what a resume keeps unless told otherwise)."""
-        return {name: [list(pair) for pair in getattr(self, name)] if name == "eval_env_args" else getattr(self, name)
-                for name in EVALUATION_FIELDS}
+        """The learning curve's settings by field name (what a resume keeps unless told otherwise)."""
+        return {name: getattr(self, name) for name in EVALUATION_FIELDS}
 
     @classmethod
     def create(cls, **values: Any) -> "RunOptions":
