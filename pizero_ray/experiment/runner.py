@@ -158,7 +158,8 @@ def _summary(out: Path, experiment: grid.Experiment, results) -> dict:
     """Each trial's final state from its run dir (the source of truth), and Tune's errors if any."""
     from pizero_ray.storage import run_dir as rundir
 
-    errors = [str(result.error).splitlines()[0] for result in results if result.error is not None]
+    # An error's last line is the exception itself; its first is Ray's "ray::ImplicitFunc.train() (pid=...)".
+    errors = [_last_line(str(result.error)) for result in results if result.error is not None]
     trials = {}
     for trial in experiment.trials:
         final = experiment.final_evaluation(rundir.evaluated_rows(grid.run_path(out, trial)))
@@ -167,6 +168,11 @@ def _summary(out: Path, experiment: grid.Experiment, results) -> dict:
                                         "eval_mean_score": final["eval_mean_score"]}
     return {"out": str(out), "finished": sum(t is not None for t in trials.values()), "trials": trials,
             "errors": errors, "time": time.strftime("%Y-%m-%d %H:%M:%S")}
+
+
+def _last_line(text: str) -> str:
+    lines = [line for line in text.splitlines() if line.strip()]
+    return lines[-1].strip() if lines else text
 
 
 def write_summary(out: Path, summary: dict) -> None:

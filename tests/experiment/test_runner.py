@@ -48,6 +48,21 @@ def _finished(out: Path) -> dict[str, str]:
     return done
 
 
+def _states(out: Path) -> dict[str, str]:
+    """Each trial's last metrics rows and checkpoint steps: what a failure report needs to be read."""
+    from pizero_ray.storage import checkpoints
+
+    states = {}
+    for trial in grid.read_spec(out).trials:
+        path = grid.run_path(out, trial)
+        metrics = path / "metrics.jsonl"
+        rows = [json.loads(line) for line in metrics.read_text().splitlines()[-2:]] if metrics.exists() else []
+        rows = [{key: row.get(key) for key in ("iteration", "wall_time_s", "eval_mean_score")} for row in rows]
+        steps = checkpoints.checkpoint_steps(path) if path.exists() else []
+        states[trial.name] = f"last rows {rows}; checkpoints {steps}"
+    return states
+
+
 @pytest.fixture(scope="module")
 def experiment(tmp_path_factory, compile_cache_dir):
     """The grid started, SIGKILLed (Ray and all) once a trial has finished, and run again to its end."""
@@ -70,7 +85,7 @@ def test_a_killed_experiment_is_restored_and_finishes_without_rerunning_finished
     assert 1 <= len(before) < 8  # the kill fell mid-way
     assert second.returncode == 0, second.stderr[-3000:]
     summary = json.loads(second.stdout.strip().splitlines()[-1])
-    assert summary["finished"] == 8 and not summary["errors"]
+    assert summary["finished"] == 8 and not summary["errors"], (summary, second.stderr[-3000:], _states(out))
     after = _finished(out)
     assert sorted(after) == sorted(t.name for t in grid.read_spec(out).trials)
     for name, text in before.items():
