@@ -194,6 +194,7 @@ def test_a_resume_keeps_the_stored_learning_curve_schedule_unless_an_option_is_g
     ({"workers": 0}, "--workers must be at least 1, got 0"),
     ({"eval_every": -1}, "--eval-every must be at least 0, got -1"),
     ({"eval_every_minutes": 0.0}, "--eval-every-minutes must be positive, got 0.0"),
+    ({"gradient_on": "gpu"}, "--gradient-on must be one of auto, workers, driver, got 'gpu'"),
 ])
 def test_run_options_validate_themselves(values, message):
     from pizero_ray.trainer.options import RunOptions
@@ -201,6 +202,16 @@ def test_run_options_validate_themselves(values, message):
     with pytest.raises(ConfigError) as error:
         RunOptions.create(iterations=1, **values)
     assert str(error.value) == message
+
+
+@pytest.mark.parametrize("gradient_on, rank, gpus, on_driver", [
+    ("auto", 0, 0.0, False), ("auto", 1, 0.0, True), ("auto", 1, 1.0, False),  # a GPU's noise: GPU workers
+    ("workers", 1, 0.0, False), ("driver", 0, 0.0, True), ("driver", 0, 1.0, True),
+])
+def test_where_the_gradient_parts_are_formed(gradient_on, rank, gpus, on_driver):
+    from pizero_ray.trainer.options import PoolOptions
+
+    assert PoolOptions(gradient_on=gradient_on, gpus_per_worker=gpus).gradient_on_driver(rank) is on_driver
 
 
 def test_a_run_dir_written_before_the_rename_still_reads():

@@ -23,6 +23,13 @@ def _flag(cls: type, name: str) -> str:
     return lookup(cls, name).flag
 
 
+# Where each chunk's share of the pseudo-gradient is formed. "workers": by the worker that evaluated the chunk,
+# from the noise it kept (a second round trip per iteration); "driver": the driver regenerates every chunk's
+# noise (no round trip; cheap when the noise is low rank). "auto": the driver for low-rank noise on CPU
+# workers, else the workers (docs/performance.md has the measurements behind it).
+GRADIENT_ON = ("auto", "workers", "driver")
+
+
 @dataclass(frozen=True)
 class PoolOptions:
     """The worker pool: how many actors, their resources, and how long a chunk may take."""
@@ -46,6 +53,11 @@ class PoolOptions:
     compile_cache: str | None = setting(
         str(compile_cache.DEFAULT_DIR), flag="--compile-cache",
         help="JAX persistent compile cache dir, or 'none'")
+    gradient_on: str = setting(
+        "auto", flag="--gradient-on", choices=GRADIENT_ON,
+        help="where each chunk's share of the update is formed: 'workers' (from the noise they kept), 'driver' "
+             "(it regenerates the noise; no second round trip), 'auto' (driver for low-rank noise on CPU "
+             "workers, else workers); on CPU workers the parameters are the same either way")
     worker_start_timeout_s: float = 900.0  # no ready worker for this long: give up
     in_flight_per_worker: int = 2  # per device: keeps a worker busy while its last result travels
     worker_resources: tuple[tuple[str, float], ...] = ()  # custom Ray resources each worker needs
@@ -60,9 +72,18 @@ class PoolOptions:
         """The actors the pool keeps asking Ray for: ``max_workers``, and never fewer than ``workers``."""
         return max(self.workers, self.max_workers or 0)
 
+    def gradient_on_driver(self, perturbation_rank: int) -> bool:
+        """Whether the driver forms every chunk's gradient part itself (``gradient_on`` resolved)."""
+        if self.gradient_on == "auto":
+            return perturbation_rank > 0 and self.gpus_per_worker == 0
+        return self.gradient_on == "driver"
+
     def validate(self) -> "PoolOptions":
         """Raises ConfigError, one line naming the value, on an option out of range."""
         check_minimums(self, ConfigError)
+        if self.gradient_on not in GRADIENT_ON:
+            raise ConfigError(f"{_flag(PoolOptions, 'gradient_on')} must be one of {', '.join(GRADIENT_ON)}, "
+                              f"got {self.gradient_on!r}")
         if not 0 < self.min_fraction <= 1:
             raise ConfigError(f"{_flag(PoolOptions, 'min_fraction')} must be in (0, 1], got {self.min_fraction}")
         if self.chunk_timeout_s <= 0:

@@ -199,11 +199,13 @@ class WorkerPool:
         With GPU workers a lost chunk goes to a surviving worker first: only
         the same backend regenerates the same bits.
         Chunks whose weights are all zero (pairs dropped by ``min_fraction``)
-        are always computed here. ``should_stop`` is looked at every POLL_S
+        are always computed here; with ``gradient_on`` resolved to the
+        driver, every chunk is (no worker is asked). ``should_stop`` is looked at every POLL_S
         and before each part computed here: a stop raises ``Interrupted``.
         """
-        parts = self._collect_parts(self._ask_for_parts(seed, weights, owners), should_stop)
-        if self._options.gpus_per_worker > 0:
+        on_driver = self._options.gradient_on_driver(self._config.perturbation_rank)
+        parts = {} if on_driver else self._collect_parts(self._ask_for_parts(seed, weights, owners), should_stop)
+        if self._options.gpus_per_worker > 0 and not on_driver:
             # A CPU draws some normals a few ulps away from a GPU's (4.7% of them on an H200, docs/performance.md):
             # a surviving GPU worker regenerates a lost chunk's part, so the update stays bit-identical.
             lost = [index for index in range(self._config.num_chunks) if index not in parts]

@@ -35,6 +35,12 @@ def test_any_number_of_workers_gives_the_same_parameters(tmp_path, compile_cache
     assert all(row["pairs_evaluated"] == CONFIG.population for row in rows)
 
 
+def test_parts_formed_on_the_driver_give_the_same_parameters(tmp_path, compile_cache_dir, reference_hash):
+    result, rows = _train(tmp_path, compile_cache_dir, gradient_on="driver")
+    assert result["parameter_hash"] == reference_hash
+    assert all(row["gradient_parts_on_driver"] == CONFIG.num_chunks for row in rows)  # no worker was asked
+
+
 def test_sigkilled_workers_mid_iteration(tmp_path, compile_cache_dir, reference_hash):
     # Right after chunk 0 of iteration 1 and chunk 3 of iteration 2 are handed out,
     # the process holding them is SIGKILLed.
