@@ -117,10 +117,6 @@ class _Run:
     def reached_iterations(self) -> bool:
         return self.options.iterations is not None and self.state.iteration >= self.options.iterations
 
-    def done(self) -> bool:
-        """The target is reached: the iterations asked for, or the wall-clock budget."""
-        return self.reached_iterations() or self.out_of_time()
-
     def begin(self) -> None:
         if self.state.iteration == 0:
             self.save()  # a run killed before its first periodic checkpoint still resumes (prepare_resume)
@@ -245,7 +241,10 @@ def train(
     try:
         with stop:
             run.begin()
-            run.finished = run.done()  # a resumed run may have nothing left to do
+            # A resumed run may have nothing left to do. Judged at its last row's clock, as record() judged
+            # that row: a run stopped (killed) a moment short of its budget trains one more iteration, and so
+            # ends on an evaluated row; the clock now would already be past the budget and end it unevaluated.
+            run.finished = run.reached_iterations() or run.out_of_time(run.wall_offset)
             while not run.finished and not stop():
                 try:
                     row = run.iterate(stop)

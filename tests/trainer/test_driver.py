@@ -169,6 +169,10 @@ def test_a_wall_clock_budget_stops_with_a_checkpoint_and_resume_raises_it(ray_se
     assert [row["iteration"] for row in later] == list(range(more["iteration"] + 1))
     evaluated_at_every_second(later)  # the marks carry on across the resume
 
+    spent = later[-1]["wall_time_s"]
+    last, rows = train(spent + 1e-6)  # as a run killed a moment short of its budget: one more iteration, evaluated
+    assert last["iteration"] == more["iteration"] + 1 and "eval_mean_score" in rows[-1]
+
 
 def test_a_run_needs_a_target_and_a_positive_budget(tmp_path, capsys):
     path = tmp_path / "run"
