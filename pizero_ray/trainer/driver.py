@@ -109,9 +109,8 @@ class _Run:
         """
         return self.wall_offset + time.time() - self.started - self.evaluating_s
 
-    def out_of_time(self, wall_time_s: float | None = None) -> bool:
-        """The budget is spent (by the clock now, or at ``wall_time_s``)."""
-        wall_time_s = self.wall_time_s() if wall_time_s is None else wall_time_s
+    def out_of_time(self, wall_time_s: float) -> bool:
+        """The budget is spent at training wall-clock ``wall_time_s``."""
         return self.options.minutes is not None and wall_time_s >= 60.0 * self.options.minutes
 
     def reached_iterations(self) -> bool:
