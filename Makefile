@@ -24,7 +24,7 @@ train: $(STAMP)
 	$(BIN)/pizero eval $(RUN_DIR) --episodes 1000
 
 test: $(STAMP)
-	JAX_PLATFORMS=cpu RAY_USAGE_STATS_ENABLED=0 $(BIN)/python -m pytest -q -n 2 --dist loadfile
+	JAX_PLATFORMS=cpu RAY_USAGE_STATS_ENABLED=0 $(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=15
 
 # On a machine with an NVIDIA GPU: the gpu extra, the GPU tests, the bench with
 # GPU workers and short TSP/Collect trainings, into one JSON under docs/bench/
