@@ -71,3 +71,15 @@ def make_agent(config: Config, spec: EnvSpec) -> Agent:
         return action, memory, StepInfo(latent, search)
 
     return Agent(init, initial_memory, act)
+
+
+def without_memory(agent: Agent) -> Agent:
+    """The same agent with its memory held at the initial zeros: the ablation that tells what the memory is
+    worth (on partially observed Pac-Man, say). The same parameters play; only what they remember is gone."""
+
+    def act(params: networks.Params, memory: jax.Array, observation: Observation, key: jax.Array, env_state=None):
+        action, _, info = agent.act(params, memory, observation, key, env_state)
+        return action, memory, info  # memory stays what initial_memory gave
+
+    return agent._replace(act=act)
+

@@ -167,6 +167,8 @@ def _parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--json", action="store_true")
     evaluate.add_argument("--env-arg", action="append", type=_env_arg, default=[], metavar="KEY=VALUE",
                           help="override an environment parameter (e.g. levels=PATH)")
+    evaluate.add_argument("--zero-memory", action="store_true",
+                          help="hold the agent's memory at its initial zeros: what the memory is worth (pacman-po)")
 
     render = sub.add_parser("render", help="draw what a run's agent does (PNG frame or GIF)")
     render.add_argument("run_dir")
@@ -473,7 +475,8 @@ def _print_report(result: dict, as_json: bool, key_width: int) -> None:
 def _cmd_eval(args) -> int:
     from pizero_ray.cli.evaluate import evaluate_run
 
-    result = evaluate_run(_existing_run(args.run_dir), args.episodes, args.seed, dict(args.env_arg))
+    result = evaluate_run(_existing_run(args.run_dir), args.episodes, args.seed, dict(args.env_arg),
+                          zero_memory=args.zero_memory)
     _print_report(result, args.json, key_width=30)
     return 0
 

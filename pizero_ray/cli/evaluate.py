@@ -16,14 +16,19 @@ def confidence_interval95(values: np.ndarray) -> tuple[float, float]:
     return mean - half, mean + half
 
 
-def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None = None) -> dict:
-    """The unperturbed agent on fresh episodes; ``env_args`` override the run's (e.g. other levels)."""
+def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
+                 zero_memory: bool = False) -> dict:
+    """The unperturbed agent on fresh episodes; ``env_args`` override the run's (e.g. other levels);
+    ``zero_memory`` holds the agent's memory at its initial zeros (``agent.without_memory``)."""
     import jax
 
     from pizero_ray.agent import episodes as play
+    from pizero_ray.agent import without_memory
     from pizero_ray.storage import runs
 
     config, iteration, theta, env, layout, agent = runs.load_run(run_path, env_args)
+    if zero_memory:
+        agent = without_memory(agent)
     key = jax.random.PRNGKey(seed)
     evaluator = play.make_evaluator(agent, env, layout.unravel, episodes, final_states=True)
     scores, final_states = evaluator(theta, key)
@@ -40,6 +45,8 @@ def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None
         "std_score": float(scores.std(ddof=1)) if episodes > 1 else 0.0,
         "ci95": [low, high],
     }
+    if zero_memory:
+        result["memory"] = "zeroed"
     if env.episode_metrics is not None:
         for name, values in env.episode_metrics(final_states).items():
             result[f"mean_{name}"] = float(np.mean(values))

@@ -2,7 +2,7 @@ import jax
 import numpy as np
 import pytest
 
-from pizero_ray.agent import make_agent
+from pizero_ray.agent import make_agent, without_memory
 from pizero_ray.config import build_config
 
 
@@ -80,3 +80,13 @@ def test_planner_choice_leaves_the_encoder_memory_and_decoder_initialisation_alo
     # The decoder's context is smaller without a planner, its per-action part is the same.
     np.testing.assert_array_equal(np.asarray(with_planner["decoder"]["features"]["w"]),
                                   np.asarray(without["decoder"]["features"]["w"]))
+
+
+def test_without_memory_acts_as_the_agent_on_zero_memory_and_keeps_it_zero(tsp_env, tiny_agent, act):
+    params = tiny_agent.init(jax.random.PRNGKey(0))
+    _, obs = _observations(tsp_env, 5)
+    zeros = tiny_agent.initial_memory(5)
+    action, memory, _ = jax.jit(without_memory(tiny_agent).act)(params, zeros, obs, jax.random.PRNGKey(2))
+    expected, remembered, _ = act(params, zeros, obs, jax.random.PRNGKey(2))
+    np.testing.assert_array_equal(np.asarray(action), np.asarray(expected))
+    assert not np.asarray(memory).any() and np.asarray(remembered).any()  # the agent itself would remember

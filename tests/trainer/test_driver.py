@@ -63,6 +63,10 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(three_iterations, tmp_
     assert low <= evaluation["mean_score"] <= high
     assert evaluation["mean_tour_length"] == pytest.approx(-evaluation["mean_score"])
     assert evaluation["ratio_to_optimal"] >= 1.0
+    assert main(["eval", str(path), "--episodes", "16", "--seed", "1", "--json", "--zero-memory"]) == 0
+    forgetful = json.loads(capsys.readouterr().out)
+    assert forgetful["memory"] == "zeroed" and "memory" not in evaluation
+    assert forgetful["mean_score"] != evaluation["mean_score"]  # the same parameters, without what they remember
 
     gif = tmp_path / "episode.gif"
     assert main(["render", str(path), "--out", str(gif)]) == 0
