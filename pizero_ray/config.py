@@ -85,6 +85,12 @@ class Config:
                               help="pairs per unit of work (divides the population); fixed so results never "
                                    "depend on the workers")
     seed: int = setting(0, flag="--seed", help="the run's seed")
+    # A curriculum's next stage starts where another run stands. The parameters only: Adam starts afresh at
+    # iteration 0, and the iterations' noise still comes from seed.
+    init_from: str | None = setting(
+        None, flag="--init-from", metavar="RUN_DIR",
+        help="start from another run dir's newest parameters (the same agent shapes; a fresh optimiser state): "
+             "a curriculum's next stage")
     # gradient-trained baselines (alphazero, muzero); they share the agent's sizes, --simulations, --planner
     # (muzero: PUCT, or gumbel), --root-noise, --lr and --weight-decay
     selfplay_episodes: int = setting(32, flag="--selfplay-episodes",

@@ -306,6 +306,12 @@ def _train_config(args):
         envs.make(config.env, **config.env_kwargs())  # env parameters are checked before anything is written
     except ValueError as error:
         raise UsageError(str(error)) from None
+    if config.init_from:  # checked (it is a run dir, its agent fits) before anything is written
+        from pizero_ray.storage import runs
+
+        config = dataclasses.replace(config, init_from=str(rundir.resolve(config.init_from)))
+        state, layout, _ = runs.initial_state(config, runs.make_env(config))
+        runs.warm_start(state, layout, Path(config.init_from))
     return config
 
 

@@ -54,6 +54,23 @@ def initial_state(config: Config, env):
     return strategy.init(theta), layout, strategy
 
 
+def warm_start(state, layout: FlatParams, source: Path):
+    """``state`` (a fresh run's) with its parameters replaced by run dir ``source``'s newest (``--init-from``).
+
+    The optimiser state and iteration stay fresh. Raises ConfigError, one line, if ``source`` is not a run dir
+    or its parameters do not fit ``layout``.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    loaded = load_run(source)
+    shapes = jax.tree.map(np.shape, layout.unravel(jnp.asarray(state.theta)))
+    if loaded.theta.size != layout.size or jax.tree.map(np.shape, loaded.layout.unravel(loaded.theta)) != shapes:
+        raise ConfigError(f"--init-from {source}: its agent ({loaded.config.method} on {loaded.config.env}, "
+                          f"{loaded.theta.size} parameters) does not fit this run's ({layout.size} parameters)")
+    return state._replace(theta=jnp.asarray(loaded.theta, jnp.float32))
+
+
 def other_env(config: Config, trained_env: Environment, env_args: dict | None) -> Environment:
     """The run's environment with ``env_args`` changed (other levels, say), or ``trained_env`` without any.
 

@@ -71,6 +71,8 @@ class _Run:
         self.config, self.options = config, options
         env = runs.make_env(config)
         state, self.layout, self.strategy = runs.initial_state(config, env)  # ES strategy, or a baseline's Learner
+        if config.init_from and (options.restart or not checkpoints.checkpoint_steps(run_path)):
+            state = runs.warm_start(state, self.layout, Path(config.init_from))  # then saved as checkpoint 0
         self.state, self.metrics = runs.restore(run_path, state, restart=options.restart)
         self.start_iteration = self.state.iteration
         self.evaluator = None

@@ -140,6 +140,29 @@ def test_gradient_parts_from_workers_equal_the_update_in_one_process(two_iterati
     assert [row["gradient_parts_on_driver"] for row in rows[1:]] == [0, 0]  # every part came from a worker
 
 
+def test_init_from_starts_where_the_other_run_stands(two_iterations, tmp_path, compile_cache_dir):
+    from pizero_ray.config import ConfigError
+
+    source, _ = two_iterations
+    _train(tmp_path / "next", 1, 1, compile_cache_dir, init_from=str(source))
+    rows, source_rows = run_dir.read_metrics(tmp_path / "next"), run_dir.read_metrics(source)
+    # Row 0 evaluates the starting parameters on the same held-out episodes: the source's last, not its first.
+    assert rows[0]["eval_mean_score"] == source_rows[-1]["eval_mean_score"] != source_rows[0]["eval_mean_score"]
+    assert [row["iteration"] for row in rows] == [0, 1]  # a run of its own, from iteration 0
+
+    wider = build_config("tiny", hidden_size=16)
+    state, layout, _ = runs.initial_state(wider, runs.make_env(wider))
+    with pytest.raises(ConfigError, match=r"--init-from .* does not fit this run's \(\d+ parameters\)"):
+        runs.warm_start(state, layout, source)
+
+
+def test_init_from_a_missing_run_is_a_one_line_error_and_writes_nothing(tmp_path, capsys):
+    args = ["train", "--preset", "tiny", "--run-dir", str(tmp_path / "run"), "--init-from", str(tmp_path / "none")]
+    assert main(args) == 2
+    assert f"run dir {tmp_path / 'none'} does not exist" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
 def test_a_wall_clock_budget_stops_with_a_checkpoint_and_resume_raises_it(ray_session, tmp_path, compile_cache_dir):
     config = build_config("tiny", planner="none")  # the budget is the driver's; the agent is the cheapest to start
     path = tmp_path / "budget"
