@@ -87,8 +87,12 @@ def expand_noise(noise: jax.Array, perturbation: Perturbation) -> jax.Array:
 def weighted_noise_sum(weights: jax.Array, noise: jax.Array, perturbation: Perturbation) -> jax.Array:
     """sum_i w_i z_i [D] for a chunk: weights [C], noise [C, noise_size].
 
-    For low-rank matrices, sum_i w_i A_i B_i^T is one [n, C r] x [C r, m]
-    product instead of C outer products.
+    For low-rank matrices, sum_i w_i A_i B_i^T is a sum of C r outer products,
+    added in a fixed order (``_outer_products_in_order``), not one
+    [n, C r] x [C r, m] matrix product: a product's blocking, and so its
+    rounding, follows the number of threads the process has (a 1-core worker
+    and a 2-core driver disagreed in the last bits on Collect), and a part
+    must be the same bits wherever it is computed.
     """
     if perturbation.rank == 0:
         return weights @ noise
@@ -98,10 +102,21 @@ def weighted_noise_sum(weights: jax.Array, noise: jax.Array, perturbation: Pertu
         if isinstance(part, tuple):
             a, b = part  # [C, r, n], [C, r, m]
             weighted = (weights[:, None, None] * a).reshape(-1, a.shape[-1])
-            parts.append((weighted.T @ b.reshape(-1, b.shape[-1]) * scale).reshape(-1))
+            parts.append((_outer_products_in_order(weighted, b.reshape(-1, b.shape[-1])) * scale).reshape(-1))
         else:
             parts.append((weights @ part.reshape(part.shape[0], -1)))
     return jnp.concatenate(parts)
+
+
+def _outer_products_in_order(left: jax.Array, right: jax.Array) -> jax.Array:
+    """sum_k outer(left[k], right[k]) [n, m], added k by k: elementwise work only, the same bits on any number
+    of threads."""
+
+    def add(total, rows):
+        return total + rows[0][:, None] * rows[1][None, :], None
+
+    total, _ = jax.lax.scan(add, jnp.zeros((left.shape[1], right.shape[1]), left.dtype), (left, right))
+    return total
 
 
 def pair_noise(key: jax.Array, pair_index: jax.Array, size: int) -> jax.Array:

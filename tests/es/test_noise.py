@@ -54,3 +54,38 @@ def test_a_weighted_chunk_sum_of_low_rank_noise_is_the_sum_of_expanded_direction
     chunk = es.chunk_noise(key, jnp.int32(4), 3, perturbation.noise_size)
     np.testing.assert_array_equal(np.asarray(chunk[1]), np.asarray(noise[5]))
 
+
+
+_PART_HASH = """
+import hashlib, os, sys
+if sys.argv[1] == "one-core":
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # before JAX starts: a 1-CPU worker's view
+import numpy as np
+import envs
+from pizero_ray import es
+from pizero_ray.config import build_config
+from pizero_ray.es import population
+config = build_config("default", env="collect", planner="none", perturbation_rank=1)
+_, layout = population.flat_params(config, envs.make(config.env, **config.env_kwargs()))
+weights = np.random.default_rng(0).standard_normal(config.chunk_size).astype(np.float32)
+part = es.gradient_parts(config, layout.perturbation).regenerated(12345, 0, weights)
+print(hashlib.sha256(part.tobytes()).hexdigest())
+"""
+
+
+def test_a_low_rank_part_is_the_same_bits_on_one_core_as_on_all():
+    """A 1-CPU worker forms the parts of the chunks it evaluated, the driver (all cores) any other: the same
+    bits either way, or the update would depend on which worker lived. (A matrix product's rounding followed
+    the thread count on Collect's matrices.)"""
+    import os
+    import subprocess
+    import sys
+
+    import pytest
+
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("needs two cores to compare one with all")
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+    hashes = [subprocess.run([sys.executable, "-c", _PART_HASH, cores], env=env, capture_output=True, text=True,
+                             check=True).stdout.strip() for cores in ("one-core", "all-cores")]
+    assert hashes[0] == hashes[1] and len(hashes[0]) == 64
