@@ -76,7 +76,7 @@ class Config:
     sigma: float = setting(0.1, flag="--sigma", help="noise scale")
     perturbation_rank: int = setting(
         0, flag="--perturbation-rank",
-        help="0: full-rank noise; r > 0: rank-r noise per weight matrix, faster (EGGROLL; opt-in)")
+        help="0: full-rank noise; r > 0: rank-r noise per weight matrix, faster (EGGROLL; the default preset: 1)")
     learning_rate: float = setting(0.01, flag="--lr", help="Adam step size")
     weight_decay: float = setting(0.0, flag="--weight-decay", help="L2 weight decay")
     fitness_shaping: str = setting("centered_ranks", flag="--fitness-shaping", choices=FITNESS_SHAPINGS,

@@ -53,6 +53,9 @@ OLD_DEFAULTS = {
 # Settings issue 12 added (the method, and the gradient-trained baselines'): an ES run's are these defaults.
 OLD_DEFAULTS.update({"method": "pizero", "selfplay_episodes": 32, "updates_per_iteration": 8, "batch_size": 128,
                      "replay_size": 256, "unroll_steps": 5, "action_grid": 16})
+OLD_DEFAULTS["init_from"] = None  # --init-from (a curriculum's next stage): none by default
+# The default preset's rank-1 noise (issue 14: at least as good as full rank on every environment at equal time).
+DEFAULT = {"perturbation_rank": 1}
 # The paper preset played 5 episodes per member until issue 14: the paper's "Trials: 5" are 5 runs.
 PAPER = {"chance_outcomes": 3, "chunk_size": 40, "learning_rate": 0.001, "population": 1000}
 TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "num_abstract_actions": 2,
@@ -60,29 +63,30 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
 
 
 @pytest.mark.parametrize("preset, overrides, differences", [
-    ("default", {}, {}),
+    ("default", {}, DEFAULT),
     ("paper", {}, PAPER),
     ("tiny", {}, TINY),
-    ("default", {"env": "2048"}, {"env": "2048", "population": 128}),
+    ("default", {"env": "2048"}, {**DEFAULT, "env": "2048", "population": 128}),
     ("paper", {"env": "2048"}, {**PAPER, "env": "2048", "env_args": {"horizon": 1000}}),
     ("paper", {"env": "pacman"}, {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}}),
-    ("default", {"env": "pacman-po"}, {"env": "pacman-po", "population": 128}),
-    ("default", {"env": "sokoban"}, {"env": "sokoban", "population": 64, "chunk_size": 16,
+    ("default", {"env": "pacman-po"}, {**DEFAULT, "env": "pacman-po", "population": 128}),
+    ("default", {"env": "sokoban"}, {**DEFAULT, "env": "sokoban", "population": 64, "chunk_size": 16,
                                      "env_args": {"view": "centred"}}),
-    ("default", {"env": "collect"}, {"env": "collect", "env_args": {"view": "centred"}}),
+    ("default", {"env": "collect"}, {**DEFAULT, "env": "collect", "env_args": {"view": "centred"}}),
     ("paper", {"env": "sokoban"}, {**PAPER, "env": "sokoban"}),
     ("tiny", {"env": "sokoban"}, {**TINY, "env": "sokoban"}),
-    ("default", {"env": "flp-mean"}, {"env": "flp-mean", "episodes_per_member": 3}),
+    ("default", {"env": "flp-mean"}, {**DEFAULT, "env": "flp-mean", "episodes_per_member": 3}),
     ("paper", {"env": "collect"}, {**PAPER, "env": "collect"}),
     # explicit values beat the environment's preset; --env-arg changes only the parameters it names
     ("paper", {"env": "2048", "env_args": {"tile_encoding": "one_hot"}},
      {**PAPER, "env": "2048", "env_args": {"horizon": 1000, "tile_encoding": "one_hot"}}),
     ("paper", {"env": "2048", "env_args": {"horizon": 50}}, {**PAPER, "env": "2048", "env_args": {"horizon": 50}}),
     ("default", {"env": "sokoban", "env_args": (("levels", "/b/train"), ("view", "absolute"))},
-     {"env": "sokoban", "population": 64, "chunk_size": 16, "env_args": {"levels": "/b/train", "view": "absolute"}}),
-    ("default", {"env": "sokoban", "population": 48}, {"env": "sokoban", "population": 48, "chunk_size": 16,
-                                                       "env_args": {"view": "centred"}}),
-    ("default", {"env": "flp", "episodes_per_member": 2}, {"env": "flp", "episodes_per_member": 2}),
+     {**DEFAULT, "env": "sokoban", "population": 64, "chunk_size": 16,
+      "env_args": {"levels": "/b/train", "view": "absolute"}}),
+    ("default", {"env": "sokoban", "population": 48},
+     {**DEFAULT, "env": "sokoban", "population": 48, "chunk_size": 16, "env_args": {"view": "centred"}}),
+    ("default", {"env": "flp", "episodes_per_member": 2}, {**DEFAULT, "env": "flp", "episodes_per_member": 2}),
     ("paper", {"env": "pacman", "population": 600, "seed": 7},
      {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}, "population": 600, "seed": 7}),
 ])
