@@ -82,4 +82,3 @@ def without_memory(agent: Agent) -> Agent:
         return action, memory, info  # memory stays what initial_memory gave
 
     return agent._replace(act=act)
-
