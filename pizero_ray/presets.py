@@ -16,7 +16,7 @@ from typing import Any
 # "default" is what learns best on a 2-core machine (see docs/tsp.md); "paper" is the paper's table. Its
 # "Trials: 5" are five independent runs (the plots' mean and band), so "paper" plays one episode per member.
 # "default" perturbs each weight matrix with rank-1 noise: at equal wall-clock (3 minutes, 3 seeds) it learns
-# at least as well as full-rank noise on all eight environments, better on Collect and both FLPs, in 1.6 to
+# at least as well as full-rank noise on all eight environments, better on Collect and both FLPs, in 1.5 to
 # 3.5 times the iterations (docs/performance.md). "paper" keeps full-rank noise, as OpenAI-ES has it.
 PRESETS: dict[str, dict[str, Any]] = {
     "default": {"perturbation_rank": 1},

@@ -65,7 +65,7 @@ def warm_start(state, layout: FlatParams, source: Path):
 
     loaded = load_run(source)
     shapes = jax.tree.map(np.shape, layout.unravel(jnp.asarray(state.theta)))
-    if loaded.theta.size != layout.size or jax.tree.map(np.shape, loaded.layout.unravel(loaded.theta)) != shapes:
+    if jax.tree.map(np.shape, loaded.layout.unravel(loaded.theta)) != shapes:  # the same shapes: the same size
         raise ConfigError(f"--init-from {source}: its agent ({loaded.config.method} on {loaded.config.env}, "
                           f"{loaded.theta.size} parameters) does not fit this run's ({layout.size} parameters)")
     return state._replace(theta=jnp.asarray(loaded.theta, jnp.float32))
