@@ -1,8 +1,11 @@
 import concurrent.futures
 import functools
 import os
+import pickle
 import shutil
 import tempfile
+import threading
+import time
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
@@ -99,9 +102,10 @@ def readme_walkthrough(request, tmp_path_factory):
 
     It starts as the session begins, when its test (marked readme_walkthrough)
     is selected: the walkthrough takes minutes, mostly waiting on Ray's CLI,
-    its jobs' start-ups and its nodes' shutdown, and so overlaps the tests
-    before it. A Future of run_walkthrough's result; None when not selected.
-    The session waits for it before it ends, so its cluster is always stopped.
+    its jobs' start-ups and its nodes' shutdown, and so overlaps the other
+    tests. Something with ``result()``, which waits for run_walkthrough's
+    result; None when not selected. The session waits for the walkthrough
+    before it ends, so its cluster is always stopped.
     """
     selected = [item for item in request.session.items if item.get_closest_marker("readme_walkthrough")]
     if not selected:
@@ -109,21 +113,53 @@ def readme_walkthrough(request, tmp_path_factory):
         return
     run = functools.partial(selected[0].module.run_walkthrough, tmp_path_factory.mktemp("readme-walkthrough"))
     if os.environ.get("PYTEST_XDIST_WORKER"):
-        # Under pytest-xdist every worker collects every test but runs only its share: the walkthrough runs
-        # when its test does (the other worker's tests overlap it then).
-        yield _Deferred(run)
+        # Under pytest-xdist every worker collects every test but runs only its share, and which worker runs
+        # the walkthrough's test is known only then: the first worker to claim it runs it from the start, and
+        # the test, on whichever worker, reads its result from the directory the run's workers share.
+        shared = _SharedRun(tmp_path_factory.getbasetemp().parent / "readme-walkthrough", run)
+        yield shared
+        shared.join()
         return
     with concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="readme-walkthrough") as pool:
         yield pool.submit(run)
 
 
-class _Deferred:
-    """A Future-like ``result()`` that runs its function on the first call."""
+class _SharedRun:
+    """``function`` run once in a background thread by the first process to claim ``directory``; ``result()``
+    in any process waits for its pickled outcome there (its return value, or the exception it raised)."""
 
-    def __init__(self, function):
-        self._function, self._result = function, None
+    WAIT_S = 1800
+
+    def __init__(self, directory, function):
+        directory.mkdir(exist_ok=True)
+        self._outcome, self._thread = directory / "outcome.pickle", None
+        try:
+            os.close(os.open(directory / "claim", os.O_CREAT | os.O_EXCL))
+        except FileExistsError:
+            return  # another worker runs it
+        self._thread = threading.Thread(target=self._run, args=(function,), name="readme-walkthrough")
+        self._thread.start()
+
+    def _run(self, function):
+        try:
+            outcome = (True, function())
+        except BaseException as error:  # noqa: BLE001 -- handed to the test, which raises it
+            outcome = (False, error)
+        partial = self._outcome.with_suffix(".partial")
+        partial.write_bytes(pickle.dumps(outcome))
+        partial.replace(self._outcome)  # whole or absent: the reader never sees half a pickle
 
     def result(self):
-        if self._result is None:
-            self._result = self._function()
-        return self._result
+        deadline = time.monotonic() + self.WAIT_S
+        while not self._outcome.exists():
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no outcome in {self._outcome} after {self.WAIT_S} s")
+            time.sleep(0.5)
+        ok, value = pickle.loads(self._outcome.read_bytes())
+        if not ok:
+            raise value
+        return value
+
+    def join(self):
+        if self._thread is not None:
+            self._thread.join()

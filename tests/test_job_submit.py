@@ -3,8 +3,9 @@
 The walkthrough takes minutes and is mostly waiting (Ray's CLI, the jobs'
 start-ups, the nodes' shutdown), so conftest.py's ``readme_walkthrough``
 fixture starts ``run_walkthrough`` in a background thread as the session
-begins, when this test is selected: it overlaps the tests before it. The test
-waits for it and checks what it did.
+begins, when this test is selected (under pytest-xdist, in the first worker
+to claim it): it overlaps the other tests. The test waits for it and checks
+what it did.
 """
 
 import json

@@ -1,4 +1,4 @@
-"""`pizero experiment` end to end: a 2x2x2 grid on Ray Tune, killed mid-way and restored; then plot-experiment.
+"""`pizero experiment` end to end: a 2x2 grid on Ray Tune, killed mid-way and restored; then plot-experiment.
 
 The experiment runs as a `pizero` subprocess in its own process group with
 its own local Ray instance (as a user runs it), so that it can be SIGKILLed
@@ -17,10 +17,14 @@ import pytest
 
 from pizero_ray.experiment import grid
 
-pytestmark = pytest.mark.slow  # minutes: eight trials' start-ups and compiles, twice a Ray instance
+pytestmark = pytest.mark.slow  # minutes: four trials' start-ups and compiles, twice a Ray instance
 
 BUDGET_MINUTES = 0.04  # 2.4 s of training per run, evaluated at 0, 1.2 s and the end
-GRID = ["--envs", "tsp,collect", "--methods", "es,alphazero", "--seeds", "2", "--budget-minutes",
+# One seed: two environments (the sittings test joins them) and both kinds of trainer (an ES trial's workers, a
+# baseline learning in its trial's process) are what a restore must handle; more seeds only add start-ups.
+ENVS, METHODS, SEEDS = ("tsp", "collect"), ("es", "alphazero"), 1
+TRIALS = len(ENVS) * len(METHODS) * SEEDS
+GRID = ["--envs", ",".join(ENVS), "--methods", ",".join(METHODS), "--seeds", str(SEEDS), "--budget-minutes",
         str(BUDGET_MINUTES), "--eval-every-minutes", "0.02", "--eval-episodes", "8", "--cpus-per-trial", "1",
         "--preset", "tiny", "--selfplay-episodes", "4", "--batch-size", "16", "--replay-size", "8",
         "--updates-per-iteration", "2"]
@@ -37,7 +41,7 @@ def _finished(out: Path) -> dict[str, str]:
     from pizero_ray.storage import checkpoints
 
     done = {}
-    for trial in grid.Experiment(envs=("tsp", "collect"), methods=("es", "alphazero"), seeds=2,
+    for trial in grid.Experiment(envs=ENVS, methods=METHODS, seeds=SEEDS,
                                  budget_minutes=BUDGET_MINUTES, eval_every_minutes=0.02).trials:
         metrics = grid.run_path(out, trial) / "metrics.jsonl"
         text = metrics.read_text() if metrics.exists() else ""
@@ -82,10 +86,10 @@ def experiment(tmp_path_factory, compile_cache_dir):
 
 def test_a_killed_experiment_is_restored_and_finishes_without_rerunning_finished_trials(experiment):
     out, before, second = experiment
-    assert 1 <= len(before) < 8  # the kill fell mid-way
+    assert 1 <= len(before) < TRIALS  # the kill fell mid-way
     assert second.returncode == 0, second.stderr[-3000:]
     summary = json.loads(second.stdout.strip().splitlines()[-1])
-    assert summary["finished"] == 8 and not summary["errors"], (summary, second.stderr[-3000:], _states(out))
+    assert summary["finished"] == TRIALS and not summary["errors"], (summary, second.stderr[-3000:], _states(out))
     after = _finished(out)
     assert sorted(after) == sorted(t.name for t in grid.read_spec(out).trials)
     for name, text in before.items():
@@ -95,7 +99,7 @@ def test_a_killed_experiment_is_restored_and_finishes_without_rerunning_finished
         assert iterations == sorted(set(iterations))  # a resumed trial has each iteration once
     assert summary == json.loads((out / "summary.json").read_text())
     trial_dirs = [path for path in (out / "tune").iterdir() if path.is_dir()]
-    assert len(trial_dirs) == 8  # Tune's own trials: restored, not duplicated
+    assert len(trial_dirs) == TRIALS  # Tune's own trials: restored, not duplicated
     assert all((grid.run_path(out, t) / "tensorboard").is_dir() for t in grid.read_spec(out).trials)
 
 
@@ -113,7 +117,7 @@ def test_plot_experiment_writes_both_figures_and_a_table_row_per_env_and_method(
         for method in ("es", "alphazero"):
             assert sum(line.startswith(f"| {env} | {method} |") for line in table.splitlines()) == 1
     results = json.loads((tmp_path / "docs" / "results.json").read_text())
-    assert {row["seeds"] for row in results["results"]} == {2}
+    assert {row["seeds"] for row in results["results"]} == {SEEDS}
     assert {"random", "nearest_neighbour", "optimal"} <= set(results["references"]["tsp"])
     assert {"random", "greedy"} <= set(results["references"]["collect"])
     for row in results["results"]:
