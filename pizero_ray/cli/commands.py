@@ -162,9 +162,10 @@ def _parser() -> argparse.ArgumentParser:
 
     evaluate = sub.add_parser("eval", help="evaluate a run's current parameters")
     evaluate.add_argument("run_dir")
-    evaluate.add_argument("--episodes", type=_positive_int, default=1000)
-    evaluate.add_argument("--seed", type=_non_negative_int, default=0)
-    evaluate.add_argument("--json", action="store_true")
+    evaluate.add_argument("--episodes", type=_positive_int, default=1000, help="fresh episodes to play (default 1000)")
+    evaluate.add_argument("--seed", type=_non_negative_int, default=0,
+                          help="seed of the episodes: the same seed, the same episodes for every run (default 0)")
+    evaluate.add_argument("--json", action="store_true", help="print one JSON object")
     evaluate.add_argument("--env-arg", action="append", type=_env_arg, default=[], metavar="KEY=VALUE",
                           help="override an environment parameter (e.g. levels=PATH)")
     evaluate.add_argument("--zero-memory", action="store_true",
@@ -172,14 +173,15 @@ def _parser() -> argparse.ArgumentParser:
 
     render = sub.add_parser("render", help="draw what a run's agent does (PNG frame or GIF)")
     render.add_argument("run_dir")
-    render.add_argument("--episodes", type=_positive_int, default=1)
-    render.add_argument("--seed", type=_non_negative_int, default=0)
+    render.add_argument("--episodes", type=_positive_int, default=1, help="episodes to draw (default 1)")
+    render.add_argument("--seed", type=_non_negative_int, default=0, help="seed of the episodes (default 0)")
     render.add_argument("--out", required=True, help="FILE.gif (whole episodes) or FILE.png (final frame)")
-    render.add_argument("--env-arg", action="append", type=_env_arg, default=[], metavar="KEY=VALUE")
+    render.add_argument("--env-arg", action="append", type=_env_arg, default=[], metavar="KEY=VALUE",
+                        help="override an environment parameter (e.g. levels=PATH)")
 
     inspect = sub.add_parser("inspect", help="iteration and parameter hash of a run")
     inspect.add_argument("run_dir")
-    inspect.add_argument("--json", action="store_true")
+    inspect.add_argument("--json", action="store_true", help="print one JSON object")
 
     bench = sub.add_parser("bench", help="measure rollout, trainer and driver speed (TSP10, paper agent)")
     bench.add_argument("--quick", action="store_true", help="a reduced version (population 64), about a minute")
