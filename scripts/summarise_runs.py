@@ -50,9 +50,23 @@ def summary(path: Path, eval_path: Path | None) -> dict:
         "curve_iteration_score_wall_s": [[r["iteration"], r["eval_mean_score"], round(r["wall_time_s"], 1)]
                                          for r in evals],
     }
+    out.update(population_spread(rows))
     if eval_path is not None:
         out["held_out"] = held_out(eval_path)
     return out
+
+
+def population_spread(rows: list[dict]) -> dict:
+    """How much the members' scores differed: the fraction of iterations in which every member scored the same
+    (ES then has no signal: a zero gradient), and the best member score in the first tenth and the rest of the
+    run. A population collapsed onto one behaviour reads as a fraction near 1."""
+    trained = [r for r in rows if "std_score" in r]
+    if not trained:
+        return {}
+    tenth = max(1, len(trained) // 10)
+    return {"all_tied_iterations_fraction": round(sum(r["std_score"] == 0 for r in trained) / len(trained), 3),
+            "best_member_score_first_tenth": max(r["max_score"] for r in trained[:tenth]),
+            "best_member_score_after": max((r["max_score"] for r in trained[tenth:]), default=None)}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -20,10 +20,13 @@ def summarise():
     return module
 
 
-def _run(path: Path, scores: list[float]) -> None:
+def _run(path: Path, scores: list[float], spreads: list[float] | None = None) -> None:
     run_dir.write_config(path, build_config("tiny", env="collect", planner="none", env_args={"view": "centred"}))
+    spreads = spreads or [1.0] * len(scores)
     rows = [{"iteration": i, "iteration_time_s": 0.5 + i, "wall_time_s": 2.0 * i, "mean_score": -9.0,
-             **({"eval_mean_score": score} if score is not None else {})} for i, score in enumerate(scores, 1)]
+             "std_score": spread, "max_score": -9.0 + spread,
+             **({"eval_mean_score": score} if score is not None else {})}
+            for i, (score, spread) in enumerate(zip(scores, spreads), 1)]
     untrained = {"iteration": 0, "wall_time_s": 0.0, "eval_mean_score": -11.0}  # as the driver writes it
     (path / run_dir.METRICS_FILE).write_text("".join(json.dumps(row) + "\n" for row in [untrained, *rows]))
 
@@ -51,3 +54,12 @@ def test_a_run_without_a_label_is_a_one_line_error(summarise, tmp_path, capsys):
     with pytest.raises(SystemExit):
         summarise.main(["--out", str(tmp_path / "x.json"), "--command", "c", str(tmp_path)])
     assert "must read LABEL=RUN_DIR[:EVAL_JSON], got" in capsys.readouterr().err
+
+
+def test_summary_says_how_often_the_whole_population_tied(summarise, tmp_path):
+    _run(tmp_path / "a", [None] * 20, spreads=[3.0, 2.0] + [0.0] * 17 + [1.0])
+    out = tmp_path / "summary.json"
+    assert summarise.main(["--out", str(out), "--command", "c", f"a={tmp_path / 'a'}"]) == 0
+    a = json.loads(out.read_text())["runs"]["a"]
+    assert a["all_tied_iterations_fraction"] == 0.85
+    assert a["best_member_score_first_tenth"] == -6.0 and a["best_member_score_after"] == -8.0
