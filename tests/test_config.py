@@ -69,7 +69,7 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
     ("default", {"env": "2048"}, {**DEFAULT, "env": "2048", "population": 128}),
     ("paper", {"env": "2048"}, {**PAPER, "env": "2048", "env_args": {"horizon": 1000}}),
     ("paper", {"env": "pacman"}, {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}}),
-    ("default", {"env": "pacman-po"}, {**DEFAULT, "env": "pacman-po", "population": 128}),
+    ("default", {"env": "pacman-po"}, {**DEFAULT, "env": "pacman-po", "population": 128, "action_selection": "sample"}),
     ("default", {"env": "sokoban"}, {**DEFAULT, "env": "sokoban", "population": 64, "chunk_size": 16,
                                      "env_args": {"view": "centred"}}),
     ("default", {"env": "collect"}, {**DEFAULT, "env": "collect", "env_args": {"view": "centred"}}),
