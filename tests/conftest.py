@@ -1,4 +1,3 @@
-import concurrent.futures
 import functools
 import os
 import pickle
@@ -112,16 +111,14 @@ def readme_walkthrough(request, tmp_path_factory):
         yield None
         return
     run = functools.partial(selected[0].module.run_walkthrough, tmp_path_factory.mktemp("readme-walkthrough"))
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        # Under pytest-xdist every worker collects every test but runs only its share, and which worker runs
-        # the walkthrough's test is known only then: the first worker to claim it runs it from the start, and
-        # the test, on whichever worker, reads its result from the directory the run's workers share.
-        shared = _SharedRun(tmp_path_factory.getbasetemp().parent / "readme-walkthrough", run)
-        yield shared
-        shared.join()
-        return
-    with concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="readme-walkthrough") as pool:
-        yield pool.submit(run)
+    # Under pytest-xdist every worker collects every test but runs only its share, and which worker runs the
+    # walkthrough's test is known only then: the first worker to claim it runs it from the start, and the
+    # test, on whichever worker, reads its result from the directory the run's workers share (their basetemp's
+    # parent). Without xdist the session's one process claims it in its own basetemp.
+    base = tmp_path_factory.getbasetemp()
+    shared = _SharedRun((base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "readme-walkthrough", run)
+    yield shared
+    shared.join()
 
 
 class _SharedRun:

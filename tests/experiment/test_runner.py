@@ -19,19 +19,26 @@ from pizero_ray.experiment import grid
 
 pytestmark = pytest.mark.slow  # minutes: four trials' start-ups and compiles, twice a Ray instance
 
-BUDGET_MINUTES = 0.04  # 2.4 s of training per run, evaluated at 0, 1.2 s and the end
+BUDGET_MINUTES, EVAL_EVERY_MINUTES = 0.04, 0.02  # 2.4 s of training per run, evaluated at 0, 1.2 s and the end
 # One seed: two environments (the sittings test joins them) and both kinds of trainer (an ES trial's workers, a
 # baseline learning in its trial's process) are what a restore must handle; more seeds only add start-ups.
 ENVS, METHODS, SEEDS = ("tsp", "collect"), ("es", "alphazero"), 1
-TRIALS = len(ENVS) * len(METHODS) * SEEDS
+TRIALS = grid.Experiment(envs=ENVS, methods=METHODS, seeds=SEEDS, budget_minutes=BUDGET_MINUTES,
+                         eval_every_minutes=EVAL_EVERY_MINUTES).trials
 GRID = ["--envs", ",".join(ENVS), "--methods", ",".join(METHODS), "--seeds", str(SEEDS), "--budget-minutes",
-        str(BUDGET_MINUTES), "--eval-every-minutes", "0.02", "--eval-episodes", "8", "--cpus-per-trial", "1",
-        "--preset", "tiny", "--selfplay-episodes", "4", "--batch-size", "16", "--replay-size", "8",
-        "--updates-per-iteration", "2"]
+        str(BUDGET_MINUTES), "--eval-every-minutes", str(EVAL_EVERY_MINUTES), "--eval-episodes", "8",
+        "--cpus-per-trial", "1", "--preset", "tiny", "--selfplay-episodes", "4", "--batch-size", "16",
+        "--replay-size", "8", "--updates-per-iteration", "2"]
 
 
 def _command(out: Path, cache: str) -> list[str]:
     return [sys.executable, "-m", "pizero_ray.cli", "experiment", *GRID, "--out", str(out), "--compile-cache", cache]
+
+
+def _metrics(run: Path) -> tuple[str, list[dict]]:
+    """A run's metrics.jsonl text ("" before it exists) and its whole rows (a row being written is left out)."""
+    text = (run / "metrics.jsonl").read_text() if (run / "metrics.jsonl").exists() else ""
+    return text, [json.loads(line) for line in text.splitlines() if line.endswith("}")]
 
 
 def _finished(out: Path) -> dict[str, str]:
@@ -41,11 +48,8 @@ def _finished(out: Path) -> dict[str, str]:
     from pizero_ray.storage import checkpoints
 
     done = {}
-    for trial in grid.Experiment(envs=ENVS, methods=METHODS, seeds=SEEDS,
-                                 budget_minutes=BUDGET_MINUTES, eval_every_minutes=0.02).trials:
-        metrics = grid.run_path(out, trial) / "metrics.jsonl"
-        text = metrics.read_text() if metrics.exists() else ""
-        rows = [json.loads(line) for line in text.splitlines() if line.endswith("}")]
+    for trial in TRIALS:
+        text, rows = _metrics(grid.run_path(out, trial))
         if rows and "eval_mean_score" in rows[-1] and rows[-1]["wall_time_s"] >= 60 * BUDGET_MINUTES:
             if checkpoints.checkpoint_steps(grid.run_path(out, trial))[-1:] == [rows[-1]["iteration"]]:
                 done[trial.name] = text
@@ -57,11 +61,10 @@ def _states(out: Path) -> dict[str, str]:
     from pizero_ray.storage import checkpoints
 
     states = {}
-    for trial in grid.read_spec(out).trials:
+    for trial in TRIALS:
         path = grid.run_path(out, trial)
-        metrics = path / "metrics.jsonl"
-        rows = [json.loads(line) for line in metrics.read_text().splitlines()[-2:]] if metrics.exists() else []
-        rows = [{key: row.get(key) for key in ("iteration", "wall_time_s", "eval_mean_score")} for row in rows]
+        rows = [{key: row.get(key) for key in ("iteration", "wall_time_s", "eval_mean_score")}
+                for row in _metrics(path)[1][-2:]]
         steps = checkpoints.checkpoint_steps(path) if path.exists() else []
         states[trial.name] = f"last rows {rows}; checkpoints {steps}"
     return states
@@ -86,10 +89,10 @@ def experiment(tmp_path_factory, compile_cache_dir):
 
 def test_a_killed_experiment_is_restored_and_finishes_without_rerunning_finished_trials(experiment):
     out, before, second = experiment
-    assert 1 <= len(before) < TRIALS  # the kill fell mid-way
+    assert 1 <= len(before) < len(TRIALS)  # the kill fell mid-way
     assert second.returncode == 0, second.stderr[-3000:]
     summary = json.loads(second.stdout.strip().splitlines()[-1])
-    assert summary["finished"] == TRIALS and not summary["errors"], (summary, second.stderr[-3000:], _states(out))
+    assert summary["finished"] == len(TRIALS) and not summary["errors"], (summary, second.stderr[-3000:], _states(out))
     after = _finished(out)
     assert sorted(after) == sorted(t.name for t in grid.read_spec(out).trials)
     for name, text in before.items():
@@ -99,7 +102,7 @@ def test_a_killed_experiment_is_restored_and_finishes_without_rerunning_finished
         assert iterations == sorted(set(iterations))  # a resumed trial has each iteration once
     assert summary == json.loads((out / "summary.json").read_text())
     trial_dirs = [path for path in (out / "tune").iterdir() if path.is_dir()]
-    assert len(trial_dirs) == TRIALS  # Tune's own trials: restored, not duplicated
+    assert len(trial_dirs) == len(TRIALS)  # Tune's own trials: restored, not duplicated
     assert all((grid.run_path(out, t) / "tensorboard").is_dir() for t in grid.read_spec(out).trials)
 
 
