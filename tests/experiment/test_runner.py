@@ -35,36 +35,31 @@ def _command(out: Path, cache: str) -> list[str]:
     return [sys.executable, "-m", "pizero_ray.cli", "experiment", *GRID, "--out", str(out), "--compile-cache", cache]
 
 
-def _metrics(run: Path) -> tuple[str, list[dict]]:
-    """A run's metrics.jsonl text ("" before it exists) and its whole rows (a row being written is left out)."""
-    text = (run / "metrics.jsonl").read_text() if (run / "metrics.jsonl").exists() else ""
-    return text, [json.loads(line) for line in text.splitlines() if line.endswith("}")]
-
-
-def _finished(out: Path) -> dict[str, str]:
-    """Trial name -> metrics.jsonl text, for the runs that have ended: a last row past the budget, evaluated,
+def _finished(out: Path) -> dict[str, list[dict]]:
+    """Trial name -> metrics rows, for the runs that have ended: a last row past the budget, evaluated,
     and the final checkpoint saved at it. (Killed between that row and that save, a run resumes from its
     previous checkpoint and trains the dropped iterations again, as it should: it had not finished.)"""
-    from pizero_ray.storage import checkpoints
+    from pizero_ray.storage import checkpoints, run_dir
 
     done = {}
     for trial in TRIALS:
-        text, rows = _metrics(grid.run_path(out, trial))
+        path = grid.run_path(out, trial)
+        rows = run_dir.read_metrics(path)  # a row being written is left out
         if rows and "eval_mean_score" in rows[-1] and rows[-1]["wall_time_s"] >= 60 * BUDGET_MINUTES:
-            if checkpoints.checkpoint_steps(grid.run_path(out, trial))[-1:] == [rows[-1]["iteration"]]:
-                done[trial.name] = text
+            if checkpoints.checkpoint_steps(path)[-1:] == [rows[-1]["iteration"]]:
+                done[trial.name] = rows
     return done
 
 
 def _states(out: Path) -> dict[str, str]:
     """Each trial's last metrics rows and checkpoint steps: what a failure report needs to be read."""
-    from pizero_ray.storage import checkpoints
+    from pizero_ray.storage import checkpoints, run_dir
 
     states = {}
     for trial in TRIALS:
         path = grid.run_path(out, trial)
         rows = [{key: row.get(key) for key in ("iteration", "wall_time_s", "eval_mean_score")}
-                for row in _metrics(path)[1][-2:]]
+                for row in run_dir.read_metrics(path)[-2:]]
         steps = checkpoints.checkpoint_steps(path) if path.exists() else []
         states[trial.name] = f"last rows {rows}; checkpoints {steps}"
     return states
@@ -95,10 +90,10 @@ def test_a_killed_experiment_is_restored_and_finishes_without_rerunning_finished
     assert summary["finished"] == len(TRIALS) and not summary["errors"], (summary, second.stderr[-3000:], _states(out))
     after = _finished(out)
     assert sorted(after) == sorted(t.name for t in grid.read_spec(out).trials)
-    for name, text in before.items():
-        assert after[name] == text  # finished before the kill: not trained again
-    for text in after.values():
-        iterations = [json.loads(line)["iteration"] for line in text.splitlines()]
+    for name, rows in before.items():
+        assert after[name] == rows  # finished before the kill: not trained again
+    for rows in after.values():
+        iterations = [row["iteration"] for row in rows]
         assert iterations == sorted(set(iterations))  # a resumed trial has each iteration once
     assert summary == json.loads((out / "summary.json").read_text())
     trial_dirs = [path for path in (out / "tune").iterdir() if path.is_dir()]
