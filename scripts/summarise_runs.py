@@ -74,6 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("runs", nargs="+", metavar="LABEL=RUN_DIR[:EVAL_JSON]")
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--command", required=True, help="the commands that made the runs, for the record")
+    parser.add_argument("--machine", default="2 CPU cores, 2 workers, nothing else running",
+                        help="where and how the runs ran (e.g. two runs side by side, one core each)")
     args = parser.parse_args(argv)
     runs = {}
     for spec in args.runs:
@@ -84,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
         runs[label] = summary(Path(path), Path(eval_path) if eval_path else None)
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     record = {"command": args.command, "summarised_at_commit": commit,
-              "machine": "2 CPU cores, 2 workers, nothing else running", "runs": runs}
+              "machine": args.machine, "runs": runs}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(record, indent=1) + "\n")
     return 0

@@ -41,7 +41,7 @@ def test_summary_keeps_the_curve_times_and_a_held_out_interval(summarise, tmp_pa
     assert summarise.main(["--out", str(out), "--command", "pizero train ...",
                            f"centred={tmp_path / 'a'}:{tmp_path / 'a.json'}", f"other={tmp_path / 'b'}"]) == 0
     record = json.loads(out.read_text())
-    assert record["command"] == "pizero train ..."
+    assert record["command"] == "pizero train ..." and record["machine"].startswith("2 CPU cores, 2 workers")
     a, b = record["runs"]["centred"], record["runs"]["other"]
     assert a["iterations"] == 3 and a["training_s"] == 6.0 and a["median_iteration_s"] == 2.5
     assert a["curve_iteration_score_wall_s"] == [[0, -11.0, 0.0], [1, -9.5, 2.0], [3, -7.25, 6.0]]
@@ -59,7 +59,10 @@ def test_a_run_without_a_label_is_a_one_line_error(summarise, tmp_path, capsys):
 def test_summary_says_how_often_the_whole_population_tied(summarise, tmp_path):
     _run(tmp_path / "a", [None] * 20, spreads=[3.0, 2.0] + [0.0] * 17 + [1.0])
     out = tmp_path / "summary.json"
-    assert summarise.main(["--out", str(out), "--command", "c", f"a={tmp_path / 'a'}"]) == 0
-    a = json.loads(out.read_text())["runs"]["a"]
+    assert summarise.main(["--out", str(out), "--command", "c", "--machine", "two runs side by side",
+                           f"a={tmp_path / 'a'}"]) == 0
+    record = json.loads(out.read_text())
+    a = record["runs"]["a"]
+    assert record["machine"] == "two runs side by side"
     assert a["all_tied_iterations_fraction"] == 0.85
     assert a["best_member_score_first_tenth"] == -6.0 and a["best_member_score_after"] == -8.0
