@@ -60,8 +60,8 @@ _GAME2048: dict[str, dict[str, Any]] = {
 # machine; TSP10's default: 0.4 s) and samples its actions: the ghosts are
 # nearly deterministic, so with argmax actions the whole population soon plays
 # one game (eat 20 pellets, get caught: 200), every member ties and ES gets no
-# signal; sampled, 10 minutes without a planner reach 1,316 on pacman
-# (docs/pacman.md). "paper" plays Jumanji's full 1000-step game.
+# signal; sampled, 30 minutes without a planner reach 1,882 and 2,050 on
+# pacman (two seeds; docs/pacman.md). "paper" plays Jumanji's full 1000-step game.
 _PACMAN: dict[str, dict[str, Any]] = {
     "default": {"population": 128, "action_selection": "sample"},
     "paper": {"env_args": {"horizon": 1000}},
