@@ -28,9 +28,10 @@ def reference_hash(ray_session, tmp_path_factory, compile_cache_dir):
     return result["parameter_hash"]
 
 
-@pytest.mark.parametrize("workers", [2, 3])
-def test_any_number_of_workers_gives_the_same_parameters(tmp_path, compile_cache_dir, reference_hash, workers):
-    result, rows = _train(tmp_path, compile_cache_dir, workers=workers)
+def test_two_workers_give_the_one_workers_parameters(tmp_path, compile_cache_dir, reference_hash):
+    # Three workers, and one worker running two devices, are test_driver.py's (with the planner's agent); one
+    # more worker count here would add only its workers' start-ups.
+    result, rows = _train(tmp_path, compile_cache_dir, workers=2)
     assert result["parameter_hash"] == reference_hash
     assert all(row["pairs_evaluated"] == CONFIG.population for row in rows)
 
@@ -87,13 +88,13 @@ def test_chaos_command_reports_identical_hashes(tmp_path, compile_cache_dir, cap
 
     from pizero_ray.cli import main
 
-    # One worker: each kill takes the pool's only worker, whose chunks then wait for its replacement (the
-    # kills with a second worker carrying on are test_sigkilled_workers_mid_iteration's).
+    # One worker and one kill: it takes the pool's only worker, whose chunks then wait for its replacement
+    # (several kills, with a second worker carrying on, are test_sigkilled_workers_mid_iteration's).
     code = main(["chaos", "--run-dir", str(tmp_path), "--preset", "tiny", "--population", "8", "--planner", "none",
-                 "--iterations", "3", "--kills", "2", "--workers", "1", "--compile-cache", compile_cache_dir,
+                 "--iterations", "2", "--kills", "1", "--workers", "1", "--compile-cache", compile_cache_dir,
                  "--no-progress"])
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert code == 0 and report["identical"] and report["workers_killed"] == 2
+    assert code == 0 and report["identical"] and report["workers_killed"] == 1
     assert report["clean_parameter_hash"] == report["chaos_parameter_hash"]
 
 
