@@ -21,7 +21,16 @@ Episodes have a fixed horizon: after ``done`` the rollout ignores rewards, so
 environments need not handle stepping past the end. ``play_policy`` plays a
 reference policy (the ``references`` hook's) the same way.
 
-Two optional hooks live beside the rules, outside the jitted path:
+One optional hook is part of the rules, for searches that step a copy of the
+environment (AlphaZero's):
+
+* ``reseed(state, key) -> state``: the same state with the randomness it
+  keeps for its future (2048's tile draws, Pac-Man's ghosts) redrawn from
+  ``key``; None where nothing is random after the reset. A search over
+  ``reseed(state, fresh key)`` plans against a sampled future, not the one
+  the game will draw.
+
+Three optional hooks live beside the rules, outside the jitted path:
 
 * ``render(state) -> uint8 [H, W, 3]``: draws one unbatched state (NumPy/PIL).
 * ``references(initial_states, scores) -> dict``: reference solvers or
@@ -79,6 +88,7 @@ class Environment(NamedTuple):
     render: Callable[[State], np.ndarray] | None = None
     references: Callable[[State, np.ndarray], dict[str, float]] | None = None
     episode_metrics: Callable[[State], dict[str, np.ndarray]] | None = None
+    reseed: Callable[[State, jax.Array], State] | None = None
 
 
 # ---------------------------------------------------------------- checking parameters

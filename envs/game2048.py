@@ -76,6 +76,11 @@ class Game2048State(NamedTuple):
     game: Any  # Jumanji's game_2048 State (board of exponents, step_count, action_mask, score, key)
 
 
+def reseed(state: Game2048State, key: jax.Array) -> Game2048State:
+    """The same board, its future tiles drawn from ``key`` (Jumanji keeps the key for the next tile in its state)."""
+    return Game2048State(state.game.replace(key=key))
+
+
 def episode_metrics(final_states: Game2048State) -> dict[str, np.ndarray]:
     """The agent's highest tile in each evaluated game."""
     return {"highest_tile": np.asarray(jax.vmap(highest_tile)(final_states.game.board))}
@@ -134,7 +139,7 @@ def make(horizon: int = 200, tile_encoding: str = "log2") -> Environment:
         num_actions=NUM_MOVES,
         action_feature_size=NUM_MOVES,
     )
-    env = Environment("2048", spec, reset, step, render=render, episode_metrics=episode_metrics)
+    env = Environment("2048", spec, reset, step, render=render, episode_metrics=episode_metrics, reseed=reseed)
     players = {"random": make_player(env, greedy=False), "greedy": make_player(env, greedy=True)}
     return env._replace(references=functools.partial(references, players))
 

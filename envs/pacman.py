@@ -95,6 +95,11 @@ class PacManState(NamedTuple):
     game: Any  # Jumanji's pac_man State; positions are Position(x=row, y=col), arrays hold (col, row)
 
 
+def reseed(state: PacManState, key: jax.Array) -> PacManState:
+    """The same position, the ghosts' future random choices drawn from ``key`` (Jumanji keeps it in its state)."""
+    return PacManState(state.game.replace(key=key))
+
+
 class Maze(NamedTuple):
     """What never changes: the free cells and where pellets start (NumPy, [rows, cols])."""
 
@@ -263,7 +268,7 @@ def make(partial: bool = False, horizon: int = 128, window_size: int | None = No
     observation_size = partial_vector_size(size) if partial else full_vector_size(maze)
     spec = EnvSpec(observation_size, horizon, NUM_ACTIONS, NUM_ACTIONS)
     draw = functools.partial(render, maze, size if partial else None)
-    env = Environment(name, spec, reset, step, render=draw)
+    env = Environment(name, spec, reset, step, render=draw, reseed=reseed)
     return env._replace(references=functools.partial(references, make_random_player(env)))
 
 

@@ -22,6 +22,7 @@ DECODERS = ("pointer", "flat")
 DECODER_INPUTS = ("state", "action", "visits", "value")
 FITNESS_SHAPINGS = ("centered_ranks", "none")
 ACTION_SELECTIONS = ("argmax", "sample")
+SIMULATOR_RANDOMNESS = ("sampled", "foreseen")
 
 
 class ConfigError(ValueError):
@@ -102,6 +103,10 @@ class Config:
     unroll_steps: int = setting(5, flag="--unroll-steps", help="muzero: model steps unrolled in the planning loss")
     action_grid: int = setting(16, flag="--action-grid",
                                help="alphazero/muzero on continuous actions (flp): grid points per action dimension")
+    simulator_randomness: str = setting(
+        "sampled", flag="--simulator-randomness", choices=SIMULATOR_RANDOMNESS,
+        help="alphazero on 2048 and Pac-Man: each search redraws the simulator's future tiles and ghost moves "
+             "(sampled), or sees the ones the game will draw (foreseen: perfect foresight)")
 
     def validate(self) -> "Config":
         def need(condition: bool, message: str) -> None:
@@ -134,6 +139,7 @@ class Config:
         for item in self.decoder_inputs:
             need(item in DECODER_INPUTS, f"unknown decoder input {item!r} (choose from {', '.join(DECODER_INPUTS)})")
         need_choice("action_selection")
+        need_choice("simulator_randomness")
         need_choice("fitness_shaping")
         need(isinstance(self.perturbation_rank, int) and self.perturbation_rank >= 0,
              f"perturbation_rank must be a non-negative integer, got {self.perturbation_rank!r}")
@@ -200,6 +206,9 @@ class Config:
         data = dict(data)
         if "trials" in data and "episodes_per_member" not in data:  # run dirs written before the rename
             data["episodes_per_member"] = data.pop("trials")
+        # Run dirs written before the setting: their AlphaZero searched the game's own future, and a resumed or
+        # evaluated run goes on doing so.
+        data.setdefault("simulator_randomness", "foreseen")
         if "env_args" in data:
             data["env_args"] = tuple(sorted(dict(data["env_args"]).items()))
         if "decoder_inputs" in data:

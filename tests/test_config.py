@@ -54,6 +54,8 @@ OLD_DEFAULTS = {
 OLD_DEFAULTS.update({"method": "pizero", "selfplay_episodes": 32, "updates_per_iteration": 8, "batch_size": 128,
                      "replay_size": 256, "unroll_steps": 5, "action_grid": 16})
 OLD_DEFAULTS["init_from"] = None  # --init-from (a curriculum's next stage): none by default
+# AlphaZero's search redraws 2048's tiles and Pac-Man's ghosts (until 2026-12-01 it foresaw the game's own).
+OLD_DEFAULTS["simulator_randomness"] = "sampled"
 # The default preset's rank-1 noise (issue 14: at least as good as full rank on every environment at equal time).
 DEFAULT = {"perturbation_rank": 1}
 # The paper preset played 5 episodes per member until issue 14: the paper's "Trials: 5" are 5 runs.
@@ -225,3 +227,12 @@ def test_a_run_dir_written_before_the_rename_still_reads():
     old["trials"] = old.pop("episodes_per_member")
     assert Config.from_dict(old).episodes_per_member == 3
     assert build_config("paper").episodes_per_member == 1  # the paper's "Trials: 5" are five runs, not episodes
+
+
+def test_an_alphazero_run_written_before_sampled_futures_goes_on_foreseeing_them():
+    from pizero_ray.config import Config
+
+    new = json.loads(build_config("default", method="alphazero", env="2048").to_json())
+    assert Config.from_dict(new).simulator_randomness == "sampled"
+    del new["simulator_randomness"]
+    assert Config.from_dict(new).simulator_randomness == "foreseen"

@@ -6,7 +6,11 @@ it has discount 0 (nothing below it is backed up) and value 0, and any step
 taken from an ended state leaves it unchanged with reward 0 and discount 0,
 so no value is ever backed up past the end of an episode. Illegal actions are
 masked at the root (``invalid_actions``) and in the interior (very negative
-prior logits).
+prior logits). Where the environment keeps randomness for its future in its
+state (2048's tiles, Pac-Man's ghosts), each search by default steps a copy
+whose randomness is redrawn (``with_sampled_futures``): the tree is one
+sampled future, as a simulator that cannot see the game's own draws would
+give. ``--simulator-randomness foreseen`` searches the true future instead.
 
 MuZero's recurrent function is the learned dynamics and prediction; the
 model itself learns, from its unroll targets, that past an episode's end
@@ -60,7 +64,7 @@ def simulator_recurrent_fn(env: Environment, net: PolicyValue):
     """mctx recurrent function over the true environment."""
 
     def recurrent_fn(params, key, action, node: SimulatorNode):
-        del key  # the environment's randomness (2048's tiles) lives in its state
+        del key  # the environment's randomness (2048's tiles) lives in its state: with_sampled_futures redraws it
         stepped, observation, reward, step_done = jax.vmap(env.step)(node.state, action)
         logits, value = net.apply(params, observation)
         ended = node.done | step_done
@@ -125,6 +129,20 @@ def make_search(config: Config, root_fn, recurrent_fn, training: bool) -> Search
     return search
 
 
+RESEED_STREAM = 1  # the search key's fold-in for the redrawn futures; mctx itself gets the key unchanged
+
+
+def with_sampled_futures(search: Search, reseed: Callable) -> Search:
+    """``search`` over copies of the states whose future randomness is redrawn from the search's key."""
+
+    def searched(params, observation: Observation, state, key: jax.Array) -> mctx.PolicyOutput:
+        batch = observation.action_mask.shape[0]
+        keys = jax.random.split(jax.random.fold_in(key, RESEED_STREAM), batch)
+        return search(params, observation, jax.vmap(reseed)(state, keys), key)
+
+    return searched
+
+
 def make_method_search(config: Config, env: Environment, training: bool) -> tuple[Callable, Search]:
     """(network init, search) for ``config.method``: alphazero over ``env``, muzero over its model."""
     from pizero_ray.baselines.networks import make_model, make_policy_value
@@ -135,4 +153,7 @@ def make_method_search(config: Config, env: Environment, training: bool) -> tupl
     else:
         net = make_model(config, env.spec)
         root_fn, recurrent_fn = functools.partial(model_root, net), model_recurrent_fn(net)
-    return net.init, make_search(config, root_fn, recurrent_fn, training)
+    search = make_search(config, root_fn, recurrent_fn, training)
+    if config.method == "alphazero" and env.reseed is not None and config.simulator_randomness == "sampled":
+        search = with_sampled_futures(search, env.reseed)
+    return net.init, search

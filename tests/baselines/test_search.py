@@ -160,3 +160,31 @@ def test_the_value_transform_is_inverted_exactly():
     x = jnp.asarray([-5000.0, -3.2, -1.0, 0.0, 0.5, 7.0, 12345.0])
     np.testing.assert_allclose(inverse_value_transform(value_transform(x)), x, rtol=1e-4, atol=1e-4)
     assert float(value_transform(jnp.float32(5000.0))) < 100.0  # large scores come down to a trainable range
+
+
+@pytest.mark.parametrize("randomness", ["sampled", "foreseen"])
+def test_on_2048_the_search_steps_a_redrawn_future_unless_told_to_foresee_the_games(randomness):
+    """The root's children hold the boards the search stepped to: the game's own next boards when foreseen; with
+    sampled futures the same moves with other new tiles (at most two cells differ: where each new tile landed)."""
+    from pizero_ray.baselines.search import make_method_search
+
+    env = envs.make("2048")
+    config = build_config("tiny", method="alphazero", num_simulations=8, simulator_randomness=randomness)
+    init, search = make_method_search(config, env, training=False)
+    states, observations = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(5), 4))
+    out = jax.jit(search)(init(jax.random.PRNGKey(0)), observations, states, jax.random.PRNGKey(1))
+    tree = out.search_tree
+    boards = np.asarray(tree.embeddings.state.game.board)  # [B, nodes, 4, 4]
+    differing = []
+    for b, action in itertools.product(range(4), range(4)):
+        child = int(tree.children_index[b, 0, action])
+        if child < 0:
+            continue  # not expanded
+        state = jax.tree_util.tree_map(functools.partial(lambda b, x: x[b], b), states)
+        true_next = np.asarray(env.step(state, jnp.int32(action))[0].game.board)
+        differing.append(int(np.sum(boards[b, child] != true_next)))
+    assert len(differing) >= 4  # eight simulations expand at least one move per game
+    if randomness == "foreseen":
+        assert differing == [0] * len(differing)
+    else:
+        assert max(differing) <= 2 and sum(differing) > 0

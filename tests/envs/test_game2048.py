@@ -197,3 +197,13 @@ def test_episode_metrics_report_the_highest_tile():
     board = states.game.board.at[0, 0, 0].set(7).at[1, 2, 3].set(3)
     metrics = env.episode_metrics(states._replace(game=states.game.replace(board=board)))
     assert list(metrics["highest_tile"][:2]) == [128, 8]
+
+
+def test_reseed_keeps_the_board_and_redraws_the_next_tile(env):
+    state, _ = env.reset(jax.random.PRNGKey(0))
+    action = jnp.int32(int(np.argmax(np.asarray(state.game.action_mask))))
+    reseeded = [env.reseed(state, jax.random.PRNGKey(k)) for k in range(8)]
+    for other in reseeded:
+        np.testing.assert_array_equal(other.game.board, state.game.board)
+    next_boards = {np.asarray(env.step(other, action)[0].game.board).tobytes() for other in reseeded}
+    assert len(next_boards) > 1  # the same move, different new tiles

@@ -220,3 +220,12 @@ def test_bad_parameters_are_one_line_errors(name, args, message):
 def test_partial_must_be_a_bool():
     with pytest.raises(ValueError, match="^pacman: partial must be true or false, got 'yes'$"):
         pacman.make(partial="yes")
+
+
+def test_reseed_changes_only_the_key_the_ghosts_draw_from(full_env, po_env, initial):
+    assert po_env.reseed is not None
+    reseeded = full_env.reseed(initial, jax.random.PRNGKey(7))
+    assert not np.array_equal(reseeded.game.key, initial.game.key)
+    same = jax.tree_util.tree_map(lambda a, b: bool(np.array_equal(a, b)),
+                                  reseeded.game.replace(key=initial.game.key), initial.game)
+    assert all(jax.tree_util.tree_leaves(same))
