@@ -2,6 +2,7 @@
 
 import functools
 import itertools
+import operator
 from typing import NamedTuple
 
 import jax
@@ -180,7 +181,7 @@ def test_on_2048_the_search_steps_a_redrawn_future_unless_told_to_foresee_the_ga
         child = int(tree.children_index[b, 0, action])
         if child < 0:
             continue  # not expanded
-        state = jax.tree_util.tree_map(functools.partial(lambda b, x: x[b], b), states)
+        state = jax.tree_util.tree_map(operator.itemgetter(b), states)
         true_next = np.asarray(env.step(state, jnp.int32(action))[0].game.board)
         differing.append(int(np.sum(boards[b, child] != true_next)))
     assert len(differing) >= 4  # eight simulations expand at least one move per game
