@@ -176,7 +176,7 @@ class ChunkEvaluator:
 
         self.config = config
         env = envs.make(config.env, **config.env_kwargs())
-        theta, layout = population.flat_params(config, env)
+        layout = population.params_layout(config, env)  # theta comes with each chunk
         self.parameters = layout.size
         self.agent_steps_per_pair = 2 * config.episodes_per_member * env.spec.horizon
         self.devices = jax.local_devices()[:max_devices]
@@ -189,7 +189,7 @@ class ChunkEvaluator:
             seed = jax.ShapeDtypeStruct((), jnp.uint32, sharding=on)
             noise = self._parts.noise.lower(seed, jax.ShapeDtypeStruct((), jnp.int32, sharding=on)).compile()
             scores = evaluate.lower(
-                jax.ShapeDtypeStruct(theta.shape, jnp.float32, sharding=on),
+                jax.ShapeDtypeStruct((layout.size,), jnp.float32, sharding=on),
                 seed,
                 jax.ShapeDtypeStruct((config.chunk_size,), jnp.int32, sharding=on),
                 jax.ShapeDtypeStruct((config.chunk_size, layout.perturbation.noise_size), jnp.float32, sharding=on),
