@@ -40,7 +40,7 @@ def flat_params(config: Config, env: Environment) -> tuple[jax.Array, FlatParams
     """Initial parameters (from config.seed) as a flat float32 vector, and its layout."""
     params = make_agent(config, env.spec).init(jax.random.PRNGKey(config.seed))
     theta, _ = ravel_pytree(params)
-    return theta.astype(jnp.float32), params_layout(config, env)
+    return theta.astype(jnp.float32), _layout_of(params, config.perturbation_rank)
 
 
 def params_layout(config: Config, env: Environment) -> FlatParams:
@@ -55,7 +55,13 @@ def params_layout(config: Config, env: Environment) -> FlatParams:
     parameters differently, in the last bit.
     """
     shapes = jax.eval_shape(make_agent(config, env.spec).init, jax.random.PRNGKey(config.seed))
-    leaves, treedef = jax.tree.flatten(shapes)
+    return _layout_of(shapes, config.perturbation_rank)
+
+
+def _layout_of(params, rank: int) -> FlatParams:
+    """The layout of a parameter pytree whose leaves have a shape and a dtype (arrays or ShapeDtypeStructs),
+    in ``ravel_pytree``'s order; its ``unravel`` does what ``ravel_pytree``'s does, without needing values."""
+    leaves, treedef = jax.tree.flatten(params)
     sizes = [math.prod(leaf.shape) for leaf in leaves]
     splits = np.cumsum(sizes)[:-1]
 
@@ -64,7 +70,7 @@ def params_layout(config: Config, env: Environment) -> FlatParams:
         return jax.tree.unflatten(treedef, [part.reshape(leaf.shape).astype(leaf.dtype)
                                             for part, leaf in zip(parts, leaves)])
 
-    perturbation = es_noise.Perturbation(tuple(leaf.shape for leaf in leaves), config.perturbation_rank)
+    perturbation = es_noise.Perturbation(tuple(leaf.shape for leaf in leaves), rank)
     return FlatParams(sum(sizes), unravel, perturbation)
 
 

@@ -53,11 +53,14 @@ def test_flat_parameters_round_trip(tiny_config, tsp_env):
     params = layout.unravel(theta)
     assert set(params) == {"encoder", "memory", "decoder", "dynamics", "reward", "prediction"}
     initial = make_agent(tiny_config, tsp_env.spec).init(jax.random.PRNGKey(tiny_config.seed))
-    # The layout comes from shapes alone (what a worker builds), and unravels theta into the very initial pytree.
-    assert jax.tree.structure(params) == jax.tree.structure(initial)
-    for leaf, expected in zip(jax.tree.leaves(params), jax.tree.leaves(initial)):
-        assert leaf.dtype == expected.dtype and np.array_equal(leaf, expected)
-    assert layout.perturbation.leaf_shapes == tuple(leaf.shape for leaf in jax.tree.leaves(initial))
+    # Both layouts, the driver's and the one from shapes alone (a worker's), unravel theta into the very initial
+    # pytree.
+    for flat_layout in (layout, population.params_layout(tiny_config, tsp_env)):
+        params = flat_layout.unravel(theta)
+        assert flat_layout.size == layout.size and jax.tree.structure(params) == jax.tree.structure(initial)
+        for leaf, expected in zip(jax.tree.leaves(params), jax.tree.leaves(initial)):
+            assert leaf.dtype == expected.dtype and np.array_equal(leaf, expected)
+        assert flat_layout.perturbation.leaf_shapes == tuple(leaf.shape for leaf in jax.tree.leaves(initial))
 
 
 @pytest.mark.parametrize("env_name, extra", [
