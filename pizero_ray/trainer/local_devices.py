@@ -38,6 +38,13 @@ KEPT_SEEDS = 2
 SEEDS_REMEMBERED = 64  # seeds known to be old: a straggler of theirs is not mistaken for a new iteration
 
 
+def use_cpu_only() -> None:
+    """This process's JAX uses only its CPU backend, as JAX_PLATFORMS=cpu would; call before JAX's first computation."""
+    import jax
+
+    jax.config.update("jax_platforms", "cpu")
+
+
 def configure_cpu_devices(count: int) -> None:
     """Gives this process's JAX CPU backend ``count`` devices; call before JAX's first computation."""
     import jax

@@ -24,11 +24,14 @@ from pizero_ray.trainer import local_devices
 class RolloutWorker:
     """Evaluates chunks of antithetic pairs; returns their scores [C, 2] as float32."""
 
-    def __init__(self, config_json: str, compile_cache_dir: str | None, cpu_devices: int = 1, pin_cores: bool = False):
+    def __init__(self, config_json: str, compile_cache_dir: str | None, cpu_devices: int = 1, pin_cores: bool = False,
+                 cpu_only: bool = False):
         started = time.time()
         from pizero_ray.trainer import compile_cache
 
         self._cores = local_devices.CoreClaim.claim(cpu_devices) if pin_cores else local_devices.CoreClaim((), [])
+        if cpu_only:  # a CPU worker on a GPU node must not grab the GPU
+            local_devices.use_cpu_only()
         local_devices.configure_cpu_devices(cpu_devices)  # before JAX's first computation
         compile_cache.enable(compile_cache_dir)
         from pizero_ray.config import Config
@@ -63,22 +66,30 @@ def start_worker(
     config_json: str, num_cpus: float, num_gpus: float, compile_cache_dir: str | None, resources: dict | None = None,
     pin_cores: bool = True,
 ):
-    """A worker actor; a CPU worker pins itself to cores of its own if it can (``local_devices.CoreClaim``)."""
-    env_vars = {"RAY_USAGE_STATS_ENABLED": "0"}
-    if num_gpus == 0:
-        env_vars["JAX_PLATFORMS"] = "cpu"  # a CPU worker on a GPU node must not grab the GPU
-    elif num_gpus < 1:
-        # Workers sharing a GPU (--gpus-per-worker 0.5): JAX's default of taking
-        # 75% of the GPU at start would leave the second one too little.
-        env_vars["XLA_PYTHON_CLIENT_PREALLOCATE"] = "false"
+    """A worker actor; a CPU worker pins itself to cores of its own if it can (``local_devices.CoreClaim``).
+
+    A CPU worker sets its JAX platform itself, in ``__init__``: an actor without
+    a ``runtime_env`` can start in one of Ray's pre-started worker processes,
+    where one with environment variables of its own waits for a new process to
+    start (a tiny config's worker was ready in 3.5 s instead of 4.3 s on a
+    2-core machine). Workers sharing a GPU keep the one variable that must be
+    set before their process starts.
+    """
     devices = worker_devices(num_cpus, num_gpus)
     actor = ray.remote(RolloutWorker).options(
-        num_cpus=num_cpus, num_gpus=num_gpus, resources=resources or {}, runtime_env={"env_vars": env_vars},
-        max_concurrency=devices,  # a chunk per device at once
-    )
+        num_cpus=num_cpus, num_gpus=num_gpus, resources=resources or {}, max_concurrency=devices,  # a chunk per device
+        runtime_env=_gpu_env(num_gpus))
     if num_gpus > 0:
         return actor.remote(config_json, compile_cache_dir)
-    return actor.remote(config_json, compile_cache_dir, devices, pin_cores)
+    return actor.remote(config_json, compile_cache_dir, devices, pin_cores, cpu_only=True)
+
+
+def _gpu_env(num_gpus: float) -> dict | None:
+    """Workers sharing a GPU (--gpus-per-worker 0.5): JAX's default of taking 75% of the GPU at start would leave
+    the second one too little."""
+    if 0 < num_gpus < 1:
+        return {"env_vars": {"XLA_PYTHON_CLIENT_PREALLOCATE": "false"}}
+    return None
 
 
 def worker_devices(num_cpus: float, num_gpus: float) -> int:

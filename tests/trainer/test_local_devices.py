@@ -177,3 +177,28 @@ def test_processes_claim_cores_of_their_own_and_free_them_on_exit(tmp_path):
     whole, whole_cores, whole_affinity = _claimant(cores, tmp_path)  # all of them: nothing to pin
     whole.communicate("\n", timeout=60)
     assert whole_cores == [] and len(whole_affinity) == cores
+
+
+_CPU_ONLY = """
+import jax
+from jax._src import xla_bridge
+import pizero_ray.trainer.workers  # what a Ray worker process imports before the actor's __init__ runs
+assert not xla_bridge.backends_are_initialized(), "importing the worker module started a JAX backend"
+from pizero_ray.trainer import local_devices
+local_devices.use_cpu_only()
+local_devices.configure_cpu_devices(2)
+print(jax.config.jax_platforms, sorted({device.platform for device in jax.devices()}), len(jax.devices()))
+"""
+
+
+def test_a_cpu_worker_chooses_jax_cpu_itself_before_any_backend_starts():
+    """CPU workers start without a runtime_env (so in Ray's pre-started processes): JAX_PLATFORMS is not set
+    for them, and the choice made in __init__ holds only if nothing imported before it started a backend."""
+    import os
+    import subprocess
+    import sys
+
+    env = {key: value for key, value in os.environ.items() if key != "JAX_PLATFORMS"}
+    out = subprocess.run([sys.executable, "-c", _CPU_ONLY], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["cpu", "['cpu']", "2"]

@@ -28,17 +28,12 @@ def reference_hash(ray_session, tmp_path_factory, compile_cache_dir):
     return result["parameter_hash"]
 
 
-def test_two_workers_give_the_one_workers_parameters(tmp_path, compile_cache_dir, reference_hash):
-    # Three workers, and one worker running two devices, are test_driver.py's (with the planner's agent); one
-    # more worker count here would add only its workers' start-ups.
-    result, rows = _train(tmp_path, compile_cache_dir, workers=2)
-    assert result["parameter_hash"] == reference_hash
-    assert all(row["pairs_evaluated"] == CONFIG.population for row in rows)
-
-
 def test_parts_formed_on_the_driver_give_the_same_parameters(tmp_path, compile_cache_dir, reference_hash):
+    # Two workers against the reference's one. With the parts formed on the workers, the default, two workers
+    # are test_sigkilled_workers_mid_iteration's (its kills aside); other worker counts are test_driver.py's.
     result, rows = _train(tmp_path, compile_cache_dir, gradient_on="driver")
     assert result["parameter_hash"] == reference_hash
+    assert all(row["pairs_evaluated"] == CONFIG.population for row in rows)
     assert all(row["gradient_parts_on_driver"] == CONFIG.num_chunks for row in rows)  # no worker was asked
 
 
