@@ -5,6 +5,7 @@ import shutil
 import tempfile
 import threading
 import time
+import uuid
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
@@ -20,11 +21,32 @@ if os.environ["JAX_PLATFORMS"] == "cpu":
     _flags = os.environ.get("XLA_FLAGS", "")
     _flags += "".join(f" --{name}={value}" for name, value in FAST_COMPILE_FLAGS.items() if name not in _flags)
     os.environ["XLA_FLAGS"] = _flags.strip()
-# One JAX compile cache for the session, made here (never ~/.cache from an earlier
-# run): `pizero` subprocesses without --compile-cache use it too, and reuse each
-# other's programs as the workers do.
-SESSION_COMPILE_CACHE = tempfile.mkdtemp(prefix="pizero-test-jax-cache-")
+# One JAX compile cache for the test run, made here (never ~/.cache from an
+# earlier run): `pizero` subprocesses without --compile-cache use it too, and
+# reuse each other's programs as the workers do. Under pytest-xdist the workers
+# share it, named by the run's id (which pytest_configure gives the controller,
+# and whose cache pytest_unconfigure removes there once every worker is done):
+# a program that one worker's tests compiled, the other's load.
+_XDIST_RUN = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+
+
+def _shared_compile_cache(run_id: str) -> str:
+    return os.path.join(tempfile.gettempdir(), f"pizero-test-jax-cache-{run_id}")
+
+
+if _XDIST_RUN:
+    SESSION_COMPILE_CACHE = _shared_compile_cache(_XDIST_RUN)
+    os.makedirs(SESSION_COMPILE_CACHE, exist_ok=True)
+else:
+    SESSION_COMPILE_CACHE = tempfile.mkdtemp(prefix="pizero-test-jax-cache-")
 os.environ["PIZERO_COMPILE_CACHE"] = SESSION_COMPILE_CACHE
+# Ray's monitoring, every 5 s on every node (each agent's psutil sweep over the
+# node's processes, each process's metrics export), costs a 2-core machine CPU
+# that the tests need, and no test reads it. Set before any Ray process starts,
+# so the test clusters, `pizero` subprocesses and the README walkthrough's
+# nodes inherit it.
+os.environ.setdefault("REPORTER_UPDATE_INTERVAL_MS", "60000")
+os.environ.setdefault("RAY_enable_metrics_collection", "0")
 
 import jax  # noqa: E402
 import pytest  # noqa: E402
@@ -58,8 +80,7 @@ def tsp_env():
 @pytest.fixture(scope="session")
 def compile_cache_dir():
     """One persistent JAX cache for the session: workers after the first skip the compile."""
-    yield SESSION_COMPILE_CACHE
-    shutil.rmtree(SESSION_COMPILE_CACHE, ignore_errors=True)
+    return SESSION_COMPILE_CACHE
 
 
 @pytest.fixture(scope="session")
@@ -93,6 +114,17 @@ def ray_session(ray_cluster):
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "readme_walkthrough: the README walkthrough's test (see readme_walkthrough)")
+    if getattr(config.option, "numprocesses", None) and not _XDIST_RUN:  # the xdist controller: name the run
+        config.option.testrunuid = config.option.testrunuid or uuid.uuid4().hex
+
+
+def pytest_unconfigure(config):
+    """Removes the run's compile cache: in the only process, or in the xdist controller once its workers end."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    shutil.rmtree(SESSION_COMPILE_CACHE, ignore_errors=True)
+    if getattr(config.option, "testrunuid", None):
+        shutil.rmtree(_shared_compile_cache(config.option.testrunuid), ignore_errors=True)
 
 
 @pytest.fixture(scope="session", autouse=True)
