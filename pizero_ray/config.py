@@ -12,7 +12,7 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from pizero_ray.presets import METHOD_PRESETS, PRESETS, env_preset
+from pizero_ray.presets import METHOD_ENV_PRESETS, METHOD_PRESETS, PRESETS, env_preset
 from pizero_ray.settings import lookup, setting
 
 METHODS = ("pizero", "es", "alphazero", "muzero")
@@ -54,7 +54,7 @@ class Config:
     memory_size: int = setting(64, flag="--memory", help="memory size")
     num_abstract_actions: int = setting(4, flag="--abstract-actions", help="abstract actions k")
     planner: str = setting("muzero", flag="--planner", choices=PLANNERS, help="the search over abstract actions")
-    num_simulations: int = setting(10, flag="--simulations", help="search budget K")
+    num_simulations: int = setting(10, flag="--simulations", help="search budget K (alphazero on flp: 32)")
     chance_outcomes: int = setting(
         0, flag="--chance-outcomes",
         help="abstract chance outcomes per afterstate (0: deterministic abstract model; > 0: chance nodes, "
@@ -102,7 +102,8 @@ class Config:
     replay_size: int = setting(256, flag="--replay-size", help="alphazero/muzero: episodes the replay buffer holds")
     unroll_steps: int = setting(5, flag="--unroll-steps", help="muzero: model steps unrolled in the planning loss")
     action_grid: int = setting(16, flag="--action-grid",
-                               help="alphazero/muzero on continuous actions (flp): grid points per action dimension")
+                               help="alphazero/muzero on continuous actions (flp): grid points per action dimension "
+                                    "(muzero on flp: 8)")
     simulator_randomness: str = setting(
         "sampled", flag="--simulator-randomness", choices=SIMULATOR_RANDOMNESS,
         help="alphazero on 2048 and Pac-Man: each search redraws the simulator's future tiles and ghost moves "
@@ -226,7 +227,8 @@ def largest_divisor_at_most(number: int, limit: int) -> int:
 
 
 def build_config(preset: str = "default", **overrides: Any) -> Config:
-    """Global preset, the environment's overrides for it, the method's, then explicit ones (pizero_ray.presets).
+    """Global preset, the environment's overrides for it, the method's, the method's for the environment, then
+    explicit ones (pizero_ray.presets).
 
     Explicit ``env_args`` change only the environment parameters they name; the
     preset's others stay.
@@ -237,9 +239,9 @@ def build_config(preset: str = "default", **overrides: Any) -> Config:
     if preset not in PRESETS:
         raise ConfigError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
     explicit = {k: v for k, v in overrides.items() if v is not None}
-    method = explicit.get("method", Config.method)
-    preset_values = {**PRESETS[preset], **env_preset(explicit.get("env", Config.env), preset),
-                     **METHOD_PRESETS.get(method, {})}
+    method, env = explicit.get("method", Config.method), explicit.get("env", Config.env)
+    preset_values = {**PRESETS[preset], **env_preset(env, preset), **METHOD_PRESETS.get(method, {}),
+                     **METHOD_ENV_PRESETS.get((method, env), {})}
     values = {**preset_values, **explicit}
     if "env_args" in preset_values and "env_args" in explicit:  # --env-arg changes the preset's keys it names
         values["env_args"] = {**dict(preset_values["env_args"]), **dict(explicit["env_args"])}

@@ -9,7 +9,7 @@ import pytest
 
 from pizero_ray.cli import commands as cli
 from pizero_ray.config import Config, ConfigError, build_config, largest_divisor_at_most
-from pizero_ray.presets import ENV_PRESETS, PRESETS
+from pizero_ray.presets import ENV_PRESETS, METHOD_ENV_PRESETS, METHOD_PRESETS, PRESETS
 from pizero_ray.settings import declared, lookup
 
 
@@ -101,8 +101,17 @@ def test_presets_build_these_configs(preset, overrides, differences):
     ("default", {"method": "alphazero"}, {"planner": "muzero", "learning_rate": 1e-3, "root_noise": 0.25}),
     ("paper", {"method": "muzero"}, {"chance_outcomes": 0, "num_simulations": 10, "hidden_size": 64}),
     ("default", {"method": "muzero", "planner": "gumbel", "root_noise": 1.0}, {"planner": "gumbel", "root_noise": 1.0}),
+    # A method's settings for one environment (FLP's): only there, only for that method, and below explicit ones.
+    ("default", {"method": "muzero", "env": "flp"}, {"action_grid": 8, "num_simulations": 10, "learning_rate": 1e-3}),
+    ("paper", {"method": "muzero", "env": "flp-mean"}, {"action_grid": 8, "hidden_size": 64}),
+    ("default", {"method": "muzero", "env": "flp", "action_grid": 16}, {"action_grid": 16}),
+    ("default", {"method": "alphazero", "env": "flp-mean"}, {"action_grid": 16, "num_simulations": 32}),
+    ("default", {"method": "alphazero", "env": "flp", "num_simulations": 10}, {"num_simulations": 10}),
+    ("default", {"method": "alphazero", "env": "tsp"}, {"num_simulations": 10}),
+    ("default", {"method": "muzero", "env": "tsp"}, {"action_grid": 16}),
+    ("default", {"method": "pizero", "env": "flp"}, {"num_simulations": 10}),
 ])
-def test_each_method_has_its_preset(preset, overrides, expected):
+def test_each_method_and_method_environment_pair_has_its_preset(preset, overrides, expected):
     config = build_config(preset, **overrides)
     assert {name: getattr(config, name) for name in expected} == expected
 
@@ -126,6 +135,8 @@ def test_environment_presets_name_real_environments_and_presets():
     assert set(ENV_PRESETS) <= set(envs.ENV_NAMES)
     assert all(set(by_preset) <= set(PRESETS) for by_preset in ENV_PRESETS.values())
     assert not hasattr(envs, "training_preset")
+    assert {env for _, env in METHOD_ENV_PRESETS} <= set(envs.ENV_NAMES)
+    assert {method for method, _ in METHOD_ENV_PRESETS} <= set(METHOD_PRESETS)
 
 
 # --------------------------------------------------------------------------- settings declared once
