@@ -99,7 +99,9 @@ class Config:
     updates_per_iteration: int = setting(8, flag="--updates-per-iteration",
                                          help="alphazero/muzero: Adam steps per iteration")
     batch_size: int = setting(128, flag="--batch-size", help="alphazero/muzero: positions per Adam step")
-    replay_size: int = setting(256, flag="--replay-size", help="alphazero/muzero: episodes the replay buffer holds")
+    replay_size: int = setting(256, flag="--replay-size",
+                               help="alphazero/muzero: episodes the replay buffer holds "
+                                    "(muzero on collect, pacman, pacman-po: 1024)")
     unroll_steps: int = setting(5, flag="--unroll-steps", help="muzero: model steps unrolled in the planning loss")
     action_grid: int = setting(16, flag="--action-grid",
                                help="alphazero/muzero on continuous actions (flp): grid points per action dimension "

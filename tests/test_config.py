@@ -110,6 +110,10 @@ def test_presets_build_these_configs(preset, overrides, differences):
     ("default", {"method": "alphazero", "env": "tsp"}, {"num_simulations": 10}),
     ("default", {"method": "muzero", "env": "tsp"}, {"action_grid": 16}),
     ("default", {"method": "pizero", "env": "flp"}, {"num_simulations": 10}),
+    ("default", {"method": "muzero", "env": "pacman-po"}, {"replay_size": 1024, "batch_size": 128}),
+    ("default", {"method": "muzero", "env": "collect", "replay_size": 512}, {"replay_size": 512}),
+    ("default", {"method": "alphazero", "env": "collect"}, {"replay_size": 256}),
+    ("default", {"method": "muzero", "env": "sokoban"}, {"replay_size": 256}),
 ])
 def test_each_method_and_method_environment_pair_has_its_preset(preset, overrides, expected):
     config = build_config(preset, **overrides)
