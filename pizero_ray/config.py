@@ -54,7 +54,8 @@ class Config:
     memory_size: int = setting(64, flag="--memory", help="memory size")
     num_abstract_actions: int = setting(4, flag="--abstract-actions", help="abstract actions k")
     planner: str = setting("muzero", flag="--planner", choices=PLANNERS, help="the search over abstract actions")
-    num_simulations: int = setting(10, flag="--simulations", help="search budget K (alphazero on flp: 32)")
+    num_simulations: int = setting(10, flag="--simulations",
+                                   help="search budget K (alphazero on tsp, flp, flp-mean: 32)")
     chance_outcomes: int = setting(
         0, flag="--chance-outcomes",
         help="abstract chance outcomes per afterstate (0: deterministic abstract model; > 0: chance nodes, "

@@ -110,7 +110,9 @@ METHOD_PRESETS: dict[str, dict[str, Any]] = {
 # MuZero on Collect and both Pac-Mans: 1,024 episodes of replay instead of 256. In 30 minutes -1.376 against
 # -2.380 on Collect, 1,576 against 1,170 on Pac-Man, 1,640 against 1,606 on pacman-po (one seed each, the
 # intervals apart), and ahead at equal iterations on all three for most of the run.
+# AlphaZero on TSP: 32 simulations; in 30 minutes a tour of 2.979 against 3.047 (the intervals apart).
 METHOD_ENV_PRESETS: dict[tuple[str, str], dict[str, Any]] = {
+    ("alphazero", "tsp"): {"num_simulations": 32},
     ("alphazero", "flp"): {"num_simulations": 32},
     ("alphazero", "flp-mean"): {"num_simulations": 32},
     ("muzero", "flp"): {"action_grid": 8},
