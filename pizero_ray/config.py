@@ -54,8 +54,7 @@ class Config:
     memory_size: int = setting(64, flag="--memory", help="memory size")
     num_abstract_actions: int = setting(4, flag="--abstract-actions", help="abstract actions k")
     planner: str = setting("muzero", flag="--planner", choices=PLANNERS, help="the search over abstract actions")
-    num_simulations: int = setting(10, flag="--simulations",
-                                   help="search budget K (alphazero on tsp, flp, flp-mean: 32)")
+    num_simulations: int = setting(10, flag="--simulations", help="search budget K")
     chance_outcomes: int = setting(
         0, flag="--chance-outcomes",
         help="abstract chance outcomes per afterstate (0: deterministic abstract model; > 0: chance nodes, "
@@ -100,13 +99,10 @@ class Config:
     updates_per_iteration: int = setting(8, flag="--updates-per-iteration",
                                          help="alphazero/muzero: Adam steps per iteration")
     batch_size: int = setting(128, flag="--batch-size", help="alphazero/muzero: positions per Adam step")
-    replay_size: int = setting(256, flag="--replay-size",
-                               help="alphazero/muzero: episodes the replay buffer holds "
-                                    "(muzero on collect, pacman, pacman-po: 1024)")
+    replay_size: int = setting(256, flag="--replay-size", help="alphazero/muzero: episodes the replay buffer holds")
     unroll_steps: int = setting(5, flag="--unroll-steps", help="muzero: model steps unrolled in the planning loss")
     action_grid: int = setting(16, flag="--action-grid",
-                               help="alphazero/muzero on continuous actions (flp): grid points per action dimension "
-                                    "(muzero on flp: 8)")
+                               help="alphazero/muzero on continuous actions (flp): grid points per action dimension")
     simulator_randomness: str = setting(
         "sampled", flag="--simulator-randomness", choices=SIMULATOR_RANDOMNESS,
         help="alphazero on 2048 and Pac-Man: each search redraws the simulator's future tiles and ghost moves "

@@ -123,6 +123,15 @@ METHOD_ENV_PRESETS: dict[tuple[str, str], dict[str, Any]] = {
 }
 
 
+def method_env_notes(name: str) -> list[str]:
+    """Where ``METHOD_ENV_PRESETS`` sets the setting ``name``, as "method on env, env: value" (for --help)."""
+    groups: dict[tuple[str, Any], list[str]] = {}
+    for (method, env), values in METHOD_ENV_PRESETS.items():
+        if name in values:
+            groups.setdefault((method, values[name]), []).append(env)
+    return [f"{method} on {', '.join(envs)}: {value}" for (method, value), envs in groups.items()]
+
+
 def env_preset(env: str, preset: str) -> dict[str, Any]:
     """The environment's overrides for a preset (empty if it has none)."""
     return dict(ENV_PRESETS.get(env, {}).get(preset, {}))

@@ -108,12 +108,11 @@ def test_presets_build_these_configs(preset, overrides, differences):
     ("default", {"method": "alphazero", "env": "flp-mean"}, {"action_grid": 16, "num_simulations": 32}),
     ("default", {"method": "alphazero", "env": "flp", "num_simulations": 10}, {"num_simulations": 10}),
     ("default", {"method": "alphazero", "env": "tsp"}, {"num_simulations": 32}),
-    ("default", {"method": "alphazero", "env": "collect"}, {"num_simulations": 10}),
     ("default", {"method": "muzero", "env": "tsp"}, {"action_grid": 16}),
     ("default", {"method": "pizero", "env": "flp"}, {"num_simulations": 10}),
     ("default", {"method": "muzero", "env": "pacman-po"}, {"replay_size": 1024, "batch_size": 128}),
     ("default", {"method": "muzero", "env": "collect", "replay_size": 512}, {"replay_size": 512}),
-    ("default", {"method": "alphazero", "env": "collect"}, {"replay_size": 256}),
+    ("default", {"method": "alphazero", "env": "collect"}, {"num_simulations": 10, "replay_size": 256}),
     ("default", {"method": "muzero", "env": "sokoban"}, {"replay_size": 256}),
 ])
 def test_each_method_and_method_environment_pair_has_its_preset(preset, overrides, expected):
@@ -145,6 +144,15 @@ def test_environment_presets_name_real_environments_and_presets():
 
 
 # --------------------------------------------------------------------------- settings declared once
+
+
+def test_train_help_names_each_method_environment_setting_from_its_table():
+    (sub,) = [a for a in cli._parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    train = {a.dest: a.help for a in sub.choices["train"]._actions}
+    assert train["num_simulations"] == "search budget K (alphazero on tsp, flp, flp-mean: 32)"
+    assert train["replay_size"].endswith("(muzero on collect, pacman, pacman-po: 1024)")
+    assert train["action_grid"].endswith("(muzero on flp, flp-mean: 8)")
+    assert train["batch_size"].endswith("positions per Adam step")  # no table entry, no note
 
 
 def test_every_option_of_train_is_a_declared_setting_or_the_commands_own():

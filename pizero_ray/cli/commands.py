@@ -17,7 +17,7 @@ import typing
 from pathlib import Path
 
 from pizero_ray.config import Config, ConfigError, build_config
-from pizero_ray.presets import PRESETS
+from pizero_ray.presets import PRESETS, method_env_notes
 from pizero_ray.settings import Setting, declared
 from pizero_ray.storage import run_dir as rundir
 from pizero_ray.storage.checkpoints import CheckpointError
@@ -94,6 +94,9 @@ def _argparse_type(s: Setting) -> dict:
 
 def _help(s: Setting, show_default: bool) -> str:
     text = s.help
+    notes = method_env_notes(s.name)  # the per-method, per-environment values, from their one table
+    if notes:
+        text += f" ({'; '.join(notes)})"
     if s.choices is not None:
         text += f" (one of {', '.join(s.allowed)})"
     if show_default and s.has_default and s.default is not None and s.type is not bool:
