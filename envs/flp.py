@@ -8,9 +8,22 @@ k-center problem, env ``flp``) the largest distance from a client to its
 nearest facility, the covering radius; with ``mean`` (continuous k-median,
 env ``flp-mean``) the mean of those distances.
 
-Observation vector (``2 n + 3 m + 1`` floats): the client coordinates,
-flattened; the facilities placed so far, zero-padded to ``m``; one placed flag
-per facility slot; the timestep as a fraction t / m. There are no discrete
+Observation vector, by ``view``, then the facilities placed so far
+(zero-padded to ``m``), one placed flag per facility slot and the timestep as
+a fraction t / m:
+
+* ``"flat"`` (``2 n + 3 m + 1`` floats): the client coordinates, flattened.
+  An MLP over them must learn the same rule once for every client slot, and
+  the same instance reads differently under every order of its clients.
+* ``"grid"`` (``2 g^2 + 3 m + 1`` floats, g = ``grid_size``): the unit square
+  cut into g x g cells, as two planes: the share of the clients in each cell,
+  and the share of the cost they pay so far (each client's distance to its
+  nearest placed facility, sqrt(2), the diagonal, while none is placed,
+  summed per cell and divided by n sqrt(2)). Both are functions of the
+  clients as a set. The second is what the reward will add up; it does not
+  say where to place a facility.
+
+There are no discrete
 actions: ``action_features`` is [0, 0] and ``action_mask`` is empty.
 ``pizero eval`` also reports both objectives of the agent's placements
 (``mean_covering_radius``, ``mean_mean_distance``), whichever it trains on.
@@ -63,6 +76,7 @@ import numpy as np
 from envs.base import Environment, EnvSpec, Observation, require_choice, require_int
 
 OBJECTIVES = ("max", "mean")
+VIEWS = ("flat", "grid")
 LLOYD_ITERATIONS = 10
 CENTRE_ITERATIONS = 100  # Weiszfeld or Badoiu-Clarkson steps per Lloyd update
 RANDOM_PLACEMENT_SEED = 0
@@ -87,17 +101,37 @@ def cost(clients: jax.Array, facilities: jax.Array, objective: str) -> jax.Array
 
 
 
-def make(num_clients: int = 20, num_facilities: int = 3, objective: str = "max") -> Environment:
+def client_grid(state: FLPState, grid_size: int) -> jax.Array:
+    """The clients as two [g, g] planes, flattened: their share per cell, and the share of the cost they pay."""
+    n = state.clients.shape[0]
+    cells = jnp.clip(jnp.floor(state.clients * grid_size).astype(jnp.int32), 0, grid_size - 1)
+    index = cells[:, 0] * grid_size + cells[:, 1]
+    placed = jnp.arange(state.facilities.shape[0]) < state.t
+    diagonal = jnp.sqrt(2.0)
+    paid = jnp.minimum(nearest_facility_distances(state.clients, state.facilities, placed), diagonal)
+    share = jnp.zeros(grid_size * grid_size).at[index].add(1.0 / n)
+    cost = jnp.zeros(grid_size * grid_size).at[index].add(paid / (n * diagonal))
+    return jnp.concatenate([share, cost]).astype(jnp.float32)
+
+
+def make(num_clients: int = 20, num_facilities: int = 3, objective: str = "max", view: str = "flat",
+         grid_size: int = 8) -> Environment:
     require_choice("flp", "objective", objective, OBJECTIVES)
     name = "flp" if objective == "max" else f"flp-{objective}"
     require_int(name, "num_clients", num_clients, 1)
     require_int(name, "num_facilities", num_facilities, 1, num_clients)
+    require_choice(name, "view", view, VIEWS)
+    require_int(name, "grid_size", grid_size, 1)
     n, m = num_clients, num_facilities
+    clients_size = 2 * grid_size * grid_size if view == "grid" else 2 * n
+
+    def observe_clients(state: FLPState) -> jax.Array:
+        return client_grid(state, grid_size) if view == "grid" else state.clients.reshape(-1)
 
     def observe(state: FLPState) -> Observation:
         placed = jnp.arange(m) < state.t
         vector = jnp.concatenate([
-            state.clients.reshape(-1),
+            observe_clients(state),
             state.facilities.reshape(-1),
             placed.astype(jnp.float32),
             (state.t / m).astype(jnp.float32)[None],
@@ -117,7 +151,7 @@ def make(num_clients: int = 20, num_facilities: int = 3, objective: str = "max")
         return state, observe(state), reward, done
 
     spec = EnvSpec(
-        observation_size=2 * n + 3 * m + 1,
+        observation_size=clients_size + 3 * m + 1,
         horizon=m,
         num_actions=0,
         action_feature_size=0,

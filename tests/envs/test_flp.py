@@ -82,6 +82,33 @@ def test_observation_shows_the_facilities_placed_so_far(env):
     assert vector[49] == pytest.approx(1 / 3)
 
 
+def test_grid_view_counts_the_clients_and_the_cost_they_pay_per_cell():
+    env = flp.make(num_clients=4, num_facilities=2, view="grid", grid_size=2)
+    assert env.spec.observation_size == 2 * 2 * 2 + 3 * 2 + 1
+    clients = [(0.1, 0.1), (0.2, 0.3), (0.9, 0.1), (0.6, 0.9)]  # cells (0, 0) twice, (1, 0), (1, 1)
+    state = _state(clients, 2)
+    vector = np.asarray(env.step(state, jnp.asarray([0.1, 0.1]))[1].vector)
+    share, cost = vector[:4], vector[4:8]
+    np.testing.assert_allclose(share, [0.5, 0, 0.25, 0.25])
+    distances = np.linalg.norm(np.asarray(clients) - [0.1, 0.1], axis=1)
+    expected = np.array([distances[0] + distances[1], 0, distances[2], distances[3]]) / (4 * np.sqrt(2))
+    np.testing.assert_allclose(cost, expected, rtol=1e-6)
+    np.testing.assert_allclose(vector[8:], [0.1, 0.1, 0, 0, 1, 0, 0.5], rtol=1e-6)
+
+
+def test_grid_view_before_any_facility_charges_every_client_the_diagonal_and_ignores_client_order():
+    env = flp.make(view="grid")
+    state, obs = env.reset(jax.random.PRNGKey(3))
+    share, cost = np.asarray(obs.vector[:64]), np.asarray(obs.vector[64:128])
+    assert share.sum() == pytest.approx(1.0) and np.count_nonzero(share) > 1
+    np.testing.assert_allclose(cost, share, rtol=1e-6)  # nothing placed: each client pays sqrt(2)
+    shuffled = state._replace(clients=state.clients[::-1])
+    for facility in ([0.3, 0.6], [0.9, 0.2]):
+        state, obs, _, _ = env.step(state, jnp.asarray(facility))
+        shuffled, shuffled_obs, _, _ = env.step(shuffled, jnp.asarray(facility))
+        np.testing.assert_allclose(obs.vector, shuffled_obs.vector, atol=1e-6)
+
+
 @pytest.mark.parametrize(
     "objective, facilities, expected",
     [
@@ -195,6 +222,8 @@ def test_render_joins_each_client_to_its_nearest_facility():
         ("flp-mean", {"num_facilities": 0}, "flp-mean: num_facilities must be an integer in 1..20, got 0"),
         ("flp", {"num_clients": "20"}, "flp: num_clients must be an integer at least 1, got '20'"),
         ("flp", {"objective": "mean"}, "bad parameters for environment 'flp'"),
+        ("flp", {"view": "image"}, "flp: view must be one of flat, grid, got 'image'"),
+        ("flp-mean", {"grid_size": 0}, "flp-mean: grid_size must be an integer at least 1, got 0"),
     ],
 )
 def test_bad_parameters_are_one_line_errors(name, args, named):
