@@ -105,13 +105,12 @@ def client_grid(state: FLPState, grid_size: int) -> jax.Array:
     """The clients as two [g, g] planes, flattened: their share per cell, and the share of the cost they pay."""
     n = state.clients.shape[0]
     cells = jnp.clip(jnp.floor(state.clients * grid_size).astype(jnp.int32), 0, grid_size - 1)
-    index = cells[:, 0] * grid_size + cells[:, 1]
+    # One-hot rows and a product rather than a scatter-add: half the time on CPU, vmapped over a population.
+    in_cell = jax.nn.one_hot(cells[:, 0] * grid_size + cells[:, 1], grid_size * grid_size)  # [n, g^2]
     placed = jnp.arange(state.facilities.shape[0]) < state.t
     diagonal = jnp.sqrt(2.0)
     paid = jnp.minimum(nearest_facility_distances(state.clients, state.facilities, placed), diagonal)
-    share = jnp.zeros(grid_size * grid_size).at[index].add(1.0 / n)
-    cost = jnp.zeros(grid_size * grid_size).at[index].add(paid / (n * diagonal))
-    return jnp.concatenate([share, cost]).astype(jnp.float32)
+    return jnp.concatenate([in_cell.sum(0) / n, paid @ in_cell / (n * diagonal)]).astype(jnp.float32)
 
 
 def make(num_clients: int = 20, num_facilities: int = 3, objective: str = "max", view: str = "flat",
