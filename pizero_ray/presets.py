@@ -138,6 +138,7 @@ def method_env_notes(name: str) -> list[str]:
             if group is None:
                 groups.append(group := (method, values[name], []))
             group[2].append(env)
+
     def text(value: Any) -> str:
         return ", ".join(f"{k}={v}" for k, v in value.items()) if isinstance(value, dict) else str(value)
 
