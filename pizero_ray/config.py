@@ -229,8 +229,8 @@ def build_config(preset: str = "default", **overrides: Any) -> Config:
     """Global preset, the environment's overrides for it, the method's, the method's for the environment, then
     explicit ones (pizero_ray.presets).
 
-    Explicit ``env_args`` change only the environment parameters they name; the
-    preset's others stay.
+    ``env_args`` merge key by key: each layer, and the explicit ones last, change
+    only the environment parameters they name; the others stay.
 
     Without an explicit ``chunk_size`` the chunk is the largest divisor of the
     population not above the preset's chunk size (32 by default).
@@ -239,11 +239,13 @@ def build_config(preset: str = "default", **overrides: Any) -> Config:
         raise ConfigError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
     explicit = {k: v for k, v in overrides.items() if v is not None}
     method, env = explicit.get("method", Config.method), explicit.get("env", Config.env)
-    preset_values = {**PRESETS[preset], **env_preset(env, preset), **METHOD_PRESETS.get(method, {}),
-                     **METHOD_ENV_PRESETS.get((method, env), {})}
-    values = {**preset_values, **explicit}
-    if "env_args" in preset_values and "env_args" in explicit:  # --env-arg changes the preset's keys it names
-        values["env_args"] = {**dict(preset_values["env_args"]), **dict(explicit["env_args"])}
+    layers = (PRESETS[preset], env_preset(env, preset), METHOD_PRESETS.get(method, {}),
+              METHOD_ENV_PRESETS.get((method, env), {}), explicit)
+    values = {name: value for layer in layers for name, value in layer.items()}
+    # env_args merge key by key, layer over layer: --env-arg (or a later layer) changes only the keys it names
+    env_args = {key: value for layer in layers for key, value in dict(layer.get("env_args", ())).items()}
+    if env_args:
+        values["env_args"] = env_args
     population = values.get("population", Config.population)
     if "chunk_size" not in explicit and isinstance(population, int) and population > 0:
         # An unchosen chunk size follows the population (24 pairs: one chunk of 24, not an error);

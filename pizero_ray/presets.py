@@ -131,18 +131,14 @@ METHOD_ENV_PRESETS: dict[tuple[str, str], dict[str, Any]] = {
 
 def method_env_notes(name: str) -> list[str]:
     """Where ``METHOD_ENV_PRESETS`` sets the setting ``name``, as "method on env, env: value" (for --help)."""
-    groups: list[tuple[str, Any, list[str]]] = []  # a list, not a dict: a value may be unhashable (env_args)
-    for (method, env), values in METHOD_ENV_PRESETS.items():
-        if name in values:
-            group = next((g for g in groups if g[:2] == (method, values[name])), None)
-            if group is None:
-                groups.append(group := (method, values[name], []))
-            group[2].append(env)
-
-    def text(value: Any) -> str:
+    def text(value: Any) -> str:  # env_args are a dict: key=value
         return ", ".join(f"{k}={v}" for k, v in value.items()) if isinstance(value, dict) else str(value)
 
-    return [f"{method} on {', '.join(envs)}: {text(value)}" for method, value, envs in groups]
+    groups: dict[tuple[str, str], list[str]] = {}
+    for (method, env), values in METHOD_ENV_PRESETS.items():
+        if name in values:
+            groups.setdefault((method, text(values[name])), []).append(env)
+    return [f"{method} on {', '.join(envs)}: {value}" for (method, value), envs in groups.items()]
 
 
 def env_preset(env: str, preset: str) -> dict[str, Any]:

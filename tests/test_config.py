@@ -266,3 +266,9 @@ def test_an_alphazero_run_written_before_sampled_futures_goes_on_foreseeing_them
     assert Config.from_dict(new).simulator_randomness == "sampled"
     del new["simulator_randomness"]
     assert Config.from_dict(new).simulator_randomness == "foreseen"
+
+
+def test_env_args_merge_key_by_key_across_every_preset_layer(monkeypatch):
+    monkeypatch.setitem(METHOD_ENV_PRESETS, ("alphazero", "sokoban"), {"env_args": {"num_boxes": 2}})
+    config = build_config("default", method="alphazero", env="sokoban", env_args={"horizon": 30})
+    assert dict(config.env_args) == {"view": "centred", "num_boxes": 2, "horizon": 30}
