@@ -1,6 +1,7 @@
 """End to end: real Ray, real worker actors, tiny configs."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -169,7 +170,10 @@ def test_a_wall_clock_budget_stops_with_a_checkpoint_and_resume_raises_it(ray_se
     run_dir.write_config(path, config)
 
     def train(seconds):
-        options = driver.RunOptions.create(minutes=seconds / 60, workers=1, compile_cache=compile_cache_dir,
+        minutes = seconds / 60
+        while 60.0 * minutes < seconds:  # the round trip can fall an ulp short; the budget must cover `seconds`
+            minutes = math.nextafter(minutes, math.inf)
+        options = driver.RunOptions.create(minutes=minutes, workers=1, compile_cache=compile_cache_dir,
                                            checkpoint_every=0, eval_every=1000, eval_every_minutes=1 / 60,
                                            eval_episodes=4)
         return driver.train(path, config, options), run_dir.read_metrics(path)
