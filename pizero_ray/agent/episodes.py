@@ -38,16 +38,47 @@ def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_ep
     def step(carry, t):
         states, observations, memory, done, score = carry
         action, memory, _ = agent.act(params, memory, observations, jax.random.fold_in(act_key, t), env_state=states)
-        states, observations, reward, step_done = jax.vmap(env.step)(states, action)
+        stepped, observations, reward, step_done = jax.vmap(env.step)(states, action)
+        # An ended episode keeps its final state, so final-state metrics do not depend on how long the others ran.
+        states = jax.tree.map(lambda new, old: jnp.where(_along(done, new), old, new), stepped, states)
         reward = jnp.where(done, 0.0, reward)
         done = done | step_done
         out = (states, action, reward, done) if record else None
         return (states, observations, memory, done, score + reward), out
 
     carry = (initial_states, observations, memory, done, score)
-    carry, recorded = jax.lax.scan(step, carry, jnp.arange(env.spec.horizon))
+    steps = jnp.arange(env.spec.horizon)
+    if record:
+        carry, recorded = jax.lax.scan(step, carry, steps)
+    else:
+        carry, recorded = _until_all_done(step, carry, steps), None
     final_states, score = carry[0], carry[-1]
     return initial_states, final_states, score, recorded
+
+
+def _along(done: jax.Array, leaf: jax.Array) -> jax.Array:
+    """``done`` [E] shaped to broadcast against a leaf whose leading axis is the episode."""
+    return done.reshape(done.shape + (1,) * (leaf.ndim - done.ndim))
+
+
+def _until_all_done(step, carry, steps: jax.Array):
+    """``step`` over ``steps`` as ``lax.scan`` would, stopping once every episode has ended.
+
+    A step after every episode ended adds nothing (rewards are masked, states
+    kept), so the scores are the scan's; games that end long before the
+    horizon (2048, Sokoban when solved) stop paying for it. Under ``vmap`` over
+    the population the loop runs until the last member's episodes end.
+    """
+
+    def unfinished(loop):
+        i, carry = loop
+        return (i < steps.shape[0]) & ~jnp.all(carry[3])
+
+    def body(loop):
+        i, carry = loop
+        return i + 1, step(carry, steps[i])[0]
+
+    return jax.lax.while_loop(unfinished, body, (jnp.int32(0), carry))[1]
 
 
 def run_episodes(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:
