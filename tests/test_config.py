@@ -68,7 +68,11 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
     ("default", {}, DEFAULT),
     ("paper", {}, PAPER),
     ("tiny", {}, TINY),
-    ("default", {"env": "2048"}, {**DEFAULT, "env": "2048", "population": 128}),
+    ("default", {"env": "2048"}, {**DEFAULT, "env": "2048", "population": 128, "episodes_per_member": 2,
+                                  "env_args": {"horizon": 1000, "tile_encoding": "one_hot"}}),
+    ("default", {"env": "2048", "env_args": {"horizon": 200}},
+     {**DEFAULT, "env": "2048", "population": 128, "episodes_per_member": 2,
+      "env_args": {"horizon": 200, "tile_encoding": "one_hot"}}),
     ("paper", {"env": "2048"}, {**PAPER, "env": "2048", "env_args": {"horizon": 1000}}),
     ("paper", {"env": "pacman"}, {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}}),
     ("default", {"env": "pacman-po"}, {**DEFAULT, "env": "pacman-po", "population": 128, "action_selection": "sample"}),
@@ -120,6 +124,11 @@ def test_presets_build_these_configs(preset, overrides, differences):
     ("default", {"method": "muzero", "env": "collect", "replay_size": 512}, {"replay_size": 512}),
     ("default", {"method": "alphazero", "env": "collect"}, {"num_simulations": 10, "replay_size": 256}),
     ("default", {"method": "muzero", "env": "sokoban"}, {"replay_size": 256}),
+    # 2048: the ES agents play the scored 1,000 moves with one-hot tiles, the baselines the games they were measured on
+    ("default", {"method": "es", "env": "2048"}, {"env_args": (("horizon", 1000), ("tile_encoding", "one_hot"))}),
+    ("default", {"method": "alphazero", "env": "2048"}, {"env_args": (("horizon", 200), ("tile_encoding", "log2"))}),
+    ("default", {"method": "muzero", "env": "2048", "env_args": {"horizon": 1000}},
+     {"env_args": (("horizon", 1000), ("tile_encoding", "log2"))}),
 ])
 def test_each_method_and_method_environment_pair_has_its_preset(preset, overrides, expected):
     config = build_config(preset, **overrides)
