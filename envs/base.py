@@ -158,6 +158,18 @@ class Playout(NamedTuple):
     length: jax.Array  # int32: steps taken up to and including that step (``horizon`` if none ended it)
 
 
+def where_done(done: jax.Array, old, new):
+    """``old`` where an episode has ended, else ``new``, leaf by leaf.
+
+    ``done`` is [] for one episode or [B] for a batch whose leaves lead with B:
+    a state kept from the step its episode ended on.
+    """
+    def pick(a, b):
+        return jnp.where(done.reshape(done.shape + (1,) * (a.ndim - done.ndim)), a, b)
+
+    return jax.tree_util.tree_map(pick, old, new)
+
+
 def play_policy(
     step: Callable[[State, jax.Array], tuple[State, Any, jax.Array, jax.Array]],
     policy: Callable[[State, Any, jax.Array], jax.Array],
@@ -176,10 +188,11 @@ def play_policy(
     pytree as the observation, e.g. just the action mask, as long as
     ``initial_observation`` has its structure.
 
-    As in the agent's episodes, every one of the ``horizon`` steps is taken
-    and rewards after ``done`` are ignored; unlike them, the state also stops
-    changing at ``done``, so ``final_state`` is where the episode ended
-    (environments need not handle stepping past the end). Batch with vmap.
+    Every one of the ``horizon`` steps is taken (the agent's scored episodes
+    stop once all have ended), rewards after ``done`` are ignored and, as in
+    the agent's episodes, the state stops changing at ``done``, so
+    ``final_state`` is where the episode ended (environments need not handle
+    stepping past the end). Batch with vmap.
     """
     keep_observation = initial_observation is not None
 
@@ -188,7 +201,7 @@ def play_policy(
         next_state, next_observation, reward, step_done = step(state, policy(state, observation, t))
         total = total + jnp.where(done, 0.0, reward)
         length = length + ~done
-        next_state = jax.tree_util.tree_map(lambda old, new: jnp.where(done, old, new), state, next_state)
+        next_state = where_done(done, state, next_state)
         observation = next_observation if keep_observation else None
         return (next_state, observation, done | step_done, total, length), None
 

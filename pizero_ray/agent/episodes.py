@@ -7,7 +7,7 @@ from typing import Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from envs.base import Environment
+from envs.base import Environment, where_done
 from pizero_ray.agent.networks import Params
 from pizero_ray.agent.pizero import Agent
 
@@ -40,29 +40,24 @@ def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_ep
         action, memory, _ = agent.act(params, memory, observations, jax.random.fold_in(act_key, t), env_state=states)
         stepped, observations, reward, step_done = jax.vmap(env.step)(states, action)
         # An ended episode keeps its final state, so final-state metrics do not depend on how long the others ran.
-        states = jax.tree.map(lambda new, old: jnp.where(_along(done, new), old, new), stepped, states)
+        states = where_done(done, states, stepped)
         reward = jnp.where(done, 0.0, reward)
         done = done | step_done
         out = (states, action, reward, done) if record else None
         return (states, observations, memory, done, score + reward), out
 
     carry = (initial_states, observations, memory, done, score)
-    steps = jnp.arange(env.spec.horizon)
     if record:
-        carry, recorded = jax.lax.scan(step, carry, steps)
+        carry, recorded = jax.lax.scan(step, carry, jnp.arange(env.spec.horizon))
     else:
-        carry, recorded = _until_all_done(step, carry, steps), None
+        carry, recorded = _until_all_done(step, carry, env.spec.horizon), None
     final_states, score = carry[0], carry[-1]
     return initial_states, final_states, score, recorded
 
 
-def _along(done: jax.Array, leaf: jax.Array) -> jax.Array:
-    """``done`` [E] shaped to broadcast against a leaf whose leading axis is the episode."""
-    return done.reshape(done.shape + (1,) * (leaf.ndim - done.ndim))
-
-
-def _until_all_done(step, carry, steps: jax.Array):
-    """``step`` over ``steps`` as ``lax.scan`` would, stopping once every episode has ended.
+def _until_all_done(step, carry, horizon: int):
+    """``step`` for t = 0, 1, ... as ``lax.scan`` over ``arange(horizon)`` would, stopping once every episode
+    has ended (``carry[3]``, ``_play``'s done flags, all True).
 
     A step after every episode ended adds nothing (rewards are masked, states
     kept), so the scores are the scan's; games that end long before the
@@ -71,12 +66,12 @@ def _until_all_done(step, carry, steps: jax.Array):
     """
 
     def unfinished(loop):
-        i, carry = loop
-        return (i < steps.shape[0]) & ~jnp.all(carry[3])
+        t, carry = loop
+        return (t < horizon) & ~jnp.all(carry[3])
 
     def body(loop):
-        i, carry = loop
-        return i + 1, step(carry, steps[i])[0]
+        t, carry = loop
+        return t + 1, step(carry, t)[0]
 
     return jax.lax.while_loop(unfinished, body, (jnp.int32(0), carry))[1]
 

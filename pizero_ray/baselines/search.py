@@ -33,17 +33,9 @@ import jax
 import jax.numpy as jnp
 import mctx
 
-from envs.base import Environment, Observation
+from envs.base import Environment, Observation, where_done
 from pizero_ray.baselines.networks import Model, PolicyValue, inverse_value_transform
 from pizero_ray.config import Config
-
-
-def _where_done(done: jax.Array, old, new):
-    """``old`` where ``done`` [B], else ``new``, leaf by leaf (leaves [B, ...])."""
-    def pick(a, b):
-        return jnp.where(done.reshape(done.shape + (1,) * (a.ndim - 1)), a, b)
-
-    return jax.tree_util.tree_map(pick, old, new)
 
 
 class SimulatorNode(NamedTuple):
@@ -73,7 +65,7 @@ def simulator_recurrent_fn(env: Environment, net: PolicyValue):
             discount=jnp.where(ended, 0.0, 1.0),
             prior_logits=logits,  # already masked by the new state's legal actions
             value=jnp.where(ended, 0.0, inverse_value_transform(value)))
-        return out, SimulatorNode(_where_done(node.done, node.state, stepped), ended)
+        return out, SimulatorNode(where_done(node.done, node.state, stepped), ended)
 
     return recurrent_fn
 
