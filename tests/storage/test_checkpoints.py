@@ -43,10 +43,14 @@ def _pizero(args, cluster, cache, **kwargs):
     return subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs)
 
 
-def _wait_for_rows(path: Path, rows: int, process, timeout_s: float = 300):
+def _wait_for_rows(path: Path, rows: int, process, timeout_s: float = 300, replacing: int | None = None):
+    """Until the run has ``rows`` metrics rows; with ``replacing``, an inode of metrics.jsonl, only rows in a
+    file that a resume's cut has since rewritten count (the killed run's rows stay until then)."""
     deadline = time.time() + timeout_s
+    metrics = path / run_dir.METRICS_FILE
     while time.time() < deadline:
-        if len(run_dir.read_metrics(path)) >= rows:
+        rewritten = replacing is None or metrics.stat().st_ino != replacing
+        if rewritten and len(run_dir.read_metrics(path)) >= rows:
             return
         assert process.poll() is None, process.communicate()
         time.sleep(0.02)
@@ -67,10 +71,14 @@ def _iterations(path):
     return [row["iteration"] for row in run_dir.read_metrics(path)]
 
 
-def test_driver_sigkilled_before_its_first_periodic_checkpoint_then_resumed(
+def test_a_run_sigkilled_then_stopped_by_sigterm_resumes_to_the_uninterrupted_parameters(
         tmp_path, ray_cluster, compile_cache_dir, reference, capsys):
-    """SIGKILL mid-run with rows but no periodic checkpoint yet, what a KubeRay retry meets: the one saved
-    before the first iteration is there, and the resumed run ends with the uninterrupted run's parameters."""
+    """One run, interrupted twice (one story, so that the suite starts two drivers fewer).
+
+    First a SIGKILL mid-run, with rows written but no periodic checkpoint yet, what a KubeRay retry meets:
+    the checkpoint saved before the first iteration is there, and the cut rows are kept aside. Then the
+    resumed run is stopped by SIGTERM, what `ray job stop` sends first: it saves the iteration it reached
+    and says how to go on. Resumed again, it ends with the uninterrupted run's parameters."""
     path = tmp_path / "run"
     args = [arg if arg != "3" else "100" for arg in TRAIN_ARGS]  # --checkpoint-every 100
     process = _pizero(["train", "--run-dir", str(path), "--iterations", str(ITERATIONS), *args],
@@ -79,28 +87,24 @@ def test_driver_sigkilled_before_its_first_periodic_checkpoint_then_resumed(
     process.kill()  # SIGKILL: no handler runs, no emergency save
     process.wait()
     assert checkpoints.checkpoint_steps(path) == [0]
-    result = _resume(path, compile_cache_dir, capsys)
-    assert result["iteration"] == ITERATIONS
-    assert result["parameter_hash"] == reference[1]
-    assert _iterations(path) == list(range(1, ITERATIONS + 1))  # no duplicate, no missing iteration
-    assert [record["row"]["iteration"] for record in _dropped(path)][:3] == [1, 2, 3]  # the cut rows are kept
 
-
-def test_sigterm_saves_a_checkpoint_and_resume_matches(tmp_path, ray_cluster, compile_cache_dir, reference, capsys):
-    path = tmp_path / "run"
-    process = _pizero(["train", "--run-dir", str(path), "--iterations", str(ITERATIONS), *TRAIN_ARGS],
+    killed_metrics = (path / run_dir.METRICS_FILE).stat().st_ino
+    process = _pizero(["resume", str(path), "--iterations", str(ITERATIONS), "--workers", WORKERS],
                       ray_cluster, compile_cache_dir)
-    _wait_for_rows(path, 4, process)
-    process.send_signal(signal.SIGTERM)  # what `ray job stop` sends first
+    _wait_for_rows(path, 2, process, replacing=killed_metrics)
+    process.send_signal(signal.SIGTERM)
     _, err = process.communicate(timeout=60)
     assert process.returncode == 128 + signal.SIGTERM
     assert "pizero resume" in err
     done = _iterations(path)
     assert checkpoints.checkpoint_steps(path)[-1] == done[-1]  # the emergency save holds the last iteration
     assert done[-1] < ITERATIONS
+
     result = _resume(path, compile_cache_dir, capsys)
+    assert result["iteration"] == ITERATIONS
     assert result["parameter_hash"] == reference[1]
-    assert _iterations(path) == list(range(1, ITERATIONS + 1))
+    assert _iterations(path) == list(range(1, ITERATIONS + 1))  # no duplicate, no missing iteration
+    assert [record["row"]["iteration"] for record in _dropped(path)][:3] == [1, 2, 3]  # the cut rows are kept
 
 
 def _newest_step_data(path: Path) -> Path:
