@@ -19,21 +19,15 @@ def _train(path, iterations, workers, compile_cache_dir, cpus_per_worker=1.0, ev
     config = build_config("tiny", **overrides)
     run_dir.write_config(path, config)
     options = driver.RunOptions.create(iterations=iterations, workers=workers, compile_cache=compile_cache_dir,
-                                       checkpoint_every=2, eval_every=eval_every, eval_episodes=8,
+                                       checkpoint_every=3, eval_every=eval_every, eval_episodes=8,
                                        cpus_per_worker=cpus_per_worker)
     return driver.train(path, config, options)
 
 
 @pytest.fixture(scope="module")
-def three_iterations(ray_session, tmp_path_factory, compile_cache_dir):
-    """(run dir, result) of three iterations on two workers; tests read it, none changes it."""
-    path = tmp_path_factory.mktemp("three-iterations") / "run"
-    return path, _train(path, 3, 2, compile_cache_dir)
-
-
-@pytest.fixture(scope="module")
 def two_iterations(ray_session, tmp_path_factory, compile_cache_dir):
-    """(run dir, result) of two iterations on two workers; tests read it, none changes it."""
+    """(run dir, result) of two iterations on two workers, checkpointed every 3: the last checkpoint is the one
+    a run saves where it ends. Tests read it, none changes it."""
     path = tmp_path_factory.mktemp("two-iterations") / "run"
     return path, _train(path, 2, 2, compile_cache_dir)
 
@@ -43,23 +37,23 @@ def _inspect(path, capsys):
     return json.loads(capsys.readouterr().out)
 
 
-def test_two_workers_write_metrics_checkpoints_and_a_hash(three_iterations, tmp_path, capsys):
-    path, result = three_iterations
+def test_two_workers_write_metrics_checkpoints_and_a_hash(two_iterations, tmp_path, capsys):
+    path, result = two_iterations
     rows = run_dir.read_metrics(path)
-    assert [row["iteration"] for row in rows] == [0, 1, 2, 3]
+    assert [row["iteration"] for row in rows] == [0, 1, 2]
     assert set(rows[0]) == {"iteration", "eval_mean_score", "wall_time_s"}  # the untrained agent
     for row in rows[1:]:
         assert 1 <= row["workers"] <= 2 and row["mean_score"] < 0 and "eval_mean_score" in row
         assert row["wall_time_s"] > 0
     info = _inspect(path, capsys)
-    assert info["iteration"] == 3 and info["parameter_hash"] == result["parameter_hash"]
-    assert info["checkpoints"] == [0, 2, 3]  # 0: saved before the first iteration
+    assert info["iteration"] == 2 and info["parameter_hash"] == result["parameter_hash"]
+    assert info["checkpoints"] == [0, 2]  # 0: saved before the first iteration; 2: where the run ended
     untrained = runs.parameter_hash(np.asarray(population.flat_params(build_config("tiny"), envs.make("tsp"))[0]))
-    assert info["parameter_hash"] != untrained  # three updates moved the parameters
+    assert info["parameter_hash"] != untrained  # two updates moved the parameters
 
     assert main(["eval", str(path), "--episodes", "16", "--seed", "1", "--json"]) == 0
     evaluation = json.loads(capsys.readouterr().out)
-    assert evaluation["env"] == "tsp" and evaluation["iteration"] == 3 and evaluation["episodes"] == 16
+    assert evaluation["env"] == "tsp" and evaluation["iteration"] == 2 and evaluation["episodes"] == 16
     low, high = evaluation["ci95"]
     assert low <= evaluation["mean_score"] <= high
     assert evaluation["mean_tour_length"] == pytest.approx(-evaluation["mean_score"])
@@ -84,29 +78,20 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(three_iterations, tmp_
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_worker_count_does_not_change_the_result(two_iterations, tmp_path, compile_cache_dir):
-    # Two workers (the module's run; test_gradient_parts... finds it equal to no workers at all, the update
-    # computed in the test process), three workers, and one worker with 2 CPUs: it runs two JAX CPU devices,
-    # a chunk on each at once. (One worker with one device: test_pool.py's reference run.)
-    # (The learning curve's evaluations leave the parameters alone: these two runs skip them.)
-    two = two_iterations[1]
-    three = _train(tmp_path / "three", 2, 3, compile_cache_dir, eval_every=0)
-    two_devices = _train(tmp_path / "two-devices", 2, 1, compile_cache_dir, cpus_per_worker=2.0, eval_every=0)
-    assert two["parameter_hash"] == three["parameter_hash"] == two_devices["parameter_hash"]
-
-
-def test_resume_continues_exactly(three_iterations, two_iterations, tmp_path, compile_cache_dir):
+def test_worker_count_and_a_resume_do_not_change_the_result(two_iterations, tmp_path, compile_cache_dir):
+    """Three iterations three ways: straight on three workers; straight on one worker with 2 CPUs, which runs
+    two JAX CPU devices, a chunk on each at once; and the module's two iterations on two workers, resumed for
+    the third on one worker. (One worker with one device: test_pool.py's reference run.) No evaluations: they
+    leave the parameters alone, and the driver traces its evaluator afresh each run."""
     import shutil
 
-    straight = three_iterations[1]
+    three = _train(tmp_path / "three", 3, 3, compile_cache_dir, eval_every=0)
+    two_devices = _train(tmp_path / "two-devices", 3, 1, compile_cache_dir, cpus_per_worker=2.0, eval_every=0)
     path = tmp_path / "split"
     shutil.copytree(two_iterations[0], path)  # a run stopped after two of the three iterations
-    config = run_dir.read_config(path)
-    # One worker and no evaluations (the driver traces its evaluator afresh each run): neither changes the
-    # parameters, which must come out as the straight run's.
-    options = driver.RunOptions.create(iterations=3, workers=1, compile_cache=compile_cache_dir, checkpoint_every=2)
-    resumed = driver.train(path, config, options)
-    assert resumed["parameter_hash"] == straight["parameter_hash"]
+    options = driver.RunOptions.create(iterations=3, workers=1, compile_cache=compile_cache_dir, checkpoint_every=3)
+    resumed = driver.train(path, run_dir.read_config(path), options)
+    assert three["parameter_hash"] == two_devices["parameter_hash"] == resumed["parameter_hash"]
     assert [row["iteration"] for row in run_dir.read_metrics(path)] == [0, 1, 2, 3]
 
 
