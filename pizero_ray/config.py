@@ -80,6 +80,11 @@ class Config:
         help="0: full-rank noise; r > 0: rank-r noise per weight matrix, faster (EGGROLL; the default preset: 1)")
     learning_rate: float = setting(0.01, flag="--lr", help="Adam step size")
     weight_decay: float = setting(0.0, flag="--weight-decay", help="L2 weight decay")
+    # ES only. Over iterations, not wall-clock, so that a run's parameters stay a function of its config and
+    # iteration count alone (bit-identical on any cluster); set it to the iterations a budget buys.
+    lr_decay_iterations: int = setting(
+        0, flag="--lr-decay-iterations",
+        help="ES: cosine decay of --lr to 0 over this many iterations, then 0 (0: a constant step size)")
     fitness_shaping: str = setting("centered_ranks", flag="--fitness-shaping", choices=FITNESS_SHAPINGS,
                                    help="how scores become weights")
     chunk_size: int = setting(32, flag="--chunk-size",
@@ -146,6 +151,10 @@ class Config:
         need(self.sigma > 0, f"sigma must be positive, got {self.sigma}")
         need(self.learning_rate > 0, f"learning_rate must be positive, got {self.learning_rate}")
         need(self.weight_decay >= 0, f"weight_decay must be non-negative, got {self.weight_decay}")
+        need(isinstance(self.lr_decay_iterations, int) and self.lr_decay_iterations >= 0,
+             f"lr_decay_iterations must be a non-negative integer, got {self.lr_decay_iterations!r}")
+        need(self.lr_decay_iterations == 0 or self.method not in GRADIENT_METHODS,
+             f"lr_decay_iterations is for ES methods, got {self.lr_decay_iterations} with method {self.method!r}")
         need(0 <= self.root_noise <= 1 or (self.planner == "gumbel" and self.root_noise >= 0),
              f"root_noise must be in [0, 1] (any non-negative Gumbel scale), got {self.root_noise}")
         need(0 < self.abstract_discount <= 1, f"abstract_discount must be in (0, 1], got {self.abstract_discount}")

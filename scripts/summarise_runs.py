@@ -43,6 +43,7 @@ def summary(path: Path, eval_path: Path | None) -> dict:
     out = {
         "env": config.env, "method": config.method, "planner": config.planner, "env_args": config.env_args,
         "seed": config.seed, "population": config.population, "learning_rate": config.learning_rate,
+        "lr_decay_iterations": config.lr_decay_iterations,
         "sigma": config.sigma, "perturbation_rank": config.perturbation_rank,
         "iterations": rows[-1]["iteration"] if rows else 0,
         "training_s": round(rows[-1]["wall_time_s"], 1) if rows else 0.0,

@@ -56,6 +56,7 @@ OLD_DEFAULTS.update({"method": "pizero", "selfplay_episodes": 32, "updates_per_i
 OLD_DEFAULTS["init_from"] = None  # --init-from (a curriculum's next stage): none by default
 # AlphaZero's search redraws 2048's tiles and Pac-Man's ghosts (until 2026-12-01 it foresaw the game's own).
 OLD_DEFAULTS["simulator_randomness"] = "sampled"
+OLD_DEFAULTS["lr_decay_iterations"] = 0  # a constant step size unless asked
 # The default preset's rank-1 noise (issue 14: at least as good as full rank on every environment at equal time).
 DEFAULT = {"perturbation_rank": 1}
 # The paper preset played 5 episodes per member until issue 14: the paper's "Trials: 5" are 5 runs.
@@ -142,6 +143,9 @@ def test_each_method_and_method_environment_pair_has_its_preset(preset, override
     ({"method": "muzero", "chance_outcomes": 3}, "method muzero has no chance nodes: chance_outcomes must be 0, got 3"),
     ({"method": "alphazero", "replay_size": 16}, "replay_size 16 is below selfplay_episodes 32"),
     ({"method": "muzero", "unroll_steps": 0}, "unroll_steps must be a positive integer, got 0"),
+    ({"lr_decay_iterations": -1}, "lr_decay_iterations must be a non-negative integer, got -1"),
+    ({"method": "alphazero", "lr_decay_iterations": 100},
+     "lr_decay_iterations is for ES methods, got 100 with method 'alphazero'"),
 ])
 def test_a_bad_method_setting_is_one_line_naming_it(overrides, message):
     with pytest.raises(ConfigError, match=re.escape(message)):
@@ -185,6 +189,7 @@ def test_every_option_of_train_is_a_declared_setting_or_the_commands_own():
 
 @pytest.mark.parametrize("argv, expected", [
     (["--lr", "0.5"], {"learning_rate": 0.5}),
+    (["--lr-decay-iterations", "14000"], {"lr_decay_iterations": 14000}),
     (["--simulations", "3", "--abstract-actions", "3"], {"num_simulations": 3, "num_abstract_actions": 3}),
     (["--hidden", "5", "--latent", "6", "--memory", "7"], {"hidden_size": 5, "latent_size": 6, "memory_size": 7}),
     (["--decoder-inputs", "state, visits"], {"decoder_inputs": ("state", "visits")}),

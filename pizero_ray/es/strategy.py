@@ -73,10 +73,17 @@ def gradient_parts(config: Config, perturbation: Perturbation) -> GradientParts:
     return GradientParts(jax.jit(noise), jax.jit(part), chunk, perturbation.parameter_size)
 
 
+def learning_rate(config: Config) -> float | optax.Schedule:
+    """Adam's step size: the constant --lr, or its cosine decay to 0 over --lr-decay-iterations."""
+    if config.lr_decay_iterations == 0:
+        return config.learning_rate  # no schedule state: checkpoints of constant-lr runs keep their layout
+    return optax.cosine_decay_schedule(config.learning_rate, config.lr_decay_iterations)
+
+
 def make_optimizer(config: Config) -> optax.GradientTransformation:
     # optax minimises: it is handed -g. Decoupled-from-nothing L2 decay is
     # added to that loss gradient, as OpenAI-ES's l2 coefficient does.
-    return optax.chain(optax.add_decayed_weights(config.weight_decay), optax.adam(config.learning_rate))
+    return optax.chain(optax.add_decayed_weights(config.weight_decay), optax.adam(learning_rate(config)))
 
 
 class ESState(NamedTuple):

@@ -124,3 +124,27 @@ def test_parts_from_kept_noise_and_from_regenerated_noise_are_the_same_bits():
     everything = np.concatenate([np.zeros(4, np.float32), weights])
     np.testing.assert_array_equal(parts.chunk_here(9, everything, 1), parts.regenerated(9, 4, weights))
     assert jax.numpy.asarray(kept).shape == (4, perturbation.noise_size)
+
+
+def test_the_step_size_follows_its_cosine_decay_then_stays_at_zero():
+    """Adam's step on a constant gradient is about lr * sign(g): the decayed steps' sizes are the schedule's."""
+    gradient = jnp.linspace(-1.0, 1.0, 6)
+    sizes = {}
+    for decay in (0, 3):
+        optimizer = es.make_optimizer(build_config("tiny", learning_rate=0.05, lr_decay_iterations=decay))
+        theta, state, sizes[decay] = jnp.zeros(6), None, []
+        state = optimizer.init(theta)
+        for _ in range(5):
+            updates, state = optimizer.update(gradient, state, theta)
+            sizes[decay].append(float(jnp.linalg.norm(updates)))
+    np.testing.assert_allclose(np.array(sizes[3]) / np.array(sizes[0]), [1.0, 0.75, 0.25, 0.0, 0.0], atol=1e-6)
+
+
+def test_a_constant_step_size_keeps_the_optimiser_state_checkpoints_have():
+    """No schedule state without a decay, so the checkpoints of runs before the setting still restore."""
+    theta = jnp.zeros(6)
+    before = optax.chain(optax.add_decayed_weights(0.0), optax.adam(0.01)).init(theta)  # the optimiser until now
+    constant = es.make_optimizer(build_config("tiny")).init(theta)
+    decayed = es.make_optimizer(build_config("tiny", lr_decay_iterations=10)).init(theta)
+    assert jax.tree.structure(constant) == jax.tree.structure(before)
+    assert len(jax.tree.leaves(decayed)) == len(jax.tree.leaves(before)) + 1  # the schedule's step count

@@ -314,3 +314,27 @@ def test_a_checkpoint_without_a_manifest_is_corrupt_only_when_visibly_broken(tmp
         with pytest.raises(checkpoints.CheckpointError, match="no file manifest and its files look complete"):
             checkpoints.prepare_resume(path, *_templates())
         assert checkpoints.checkpoint_steps(path) == [6, 9, 12]
+
+
+def test_a_decaying_step_size_resumes_where_its_schedule_stood(tmp_path):
+    """The schedule's step count is optimiser state: saved, restored, and the next step is the uninterrupted one."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    from pizero_ray import es
+
+    optimizer = es.make_optimizer(build_config("tiny", lr_decay_iterations=4))
+    theta, gradient = jnp.zeros(5), jnp.linspace(-1.0, 1.0, 5)
+    state = optimizer.init(theta)
+    for _ in range(2):
+        updates, state = optimizer.update(gradient, state, theta)
+    writer = checkpoints.CheckpointWriter(tmp_path)
+    writer.save(2, np.asarray(theta), state, {})
+    writer.close()
+    restored = checkpoints.restore_latest(tmp_path, np.asarray(theta), optimizer.init(theta))
+    assert restored.iteration == 2
+    after_resume, _ = optimizer.update(gradient, restored.opt_state, theta)
+    uninterrupted, _ = optimizer.update(gradient, state, theta)
+    np.testing.assert_array_equal(np.asarray(after_resume), np.asarray(uninterrupted))
+    assert 0.0 < float(jnp.linalg.norm(after_resume)) < float(jnp.linalg.norm(optimizer.update(
+        gradient, optimizer.init(theta), theta)[0]))  # the third step, smaller than the first
