@@ -132,7 +132,7 @@ def test_the_step_size_follows_its_cosine_decay_then_stays_at_zero():
     sizes = {}
     for decay in (0, 3):
         optimizer = es.make_optimizer(build_config("tiny", learning_rate=0.05, lr_decay_iterations=decay))
-        theta, state, sizes[decay] = jnp.zeros(6), None, []
+        theta, sizes[decay] = jnp.zeros(6), []
         state = optimizer.init(theta)
         for _ in range(5):
             updates, state = optimizer.update(gradient, state, theta)

@@ -327,7 +327,7 @@ def test_a_decaying_step_size_resumes_where_its_schedule_stood(tmp_path):
     theta, gradient = jnp.zeros(5), jnp.linspace(-1.0, 1.0, 5)
     state = optimizer.init(theta)
     for _ in range(2):
-        updates, state = optimizer.update(gradient, state, theta)
+        _, state = optimizer.update(gradient, state, theta)
     writer = checkpoints.CheckpointWriter(tmp_path)
     writer.save(2, np.asarray(theta), state, {})
     writer.close()
