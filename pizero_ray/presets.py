@@ -52,7 +52,7 @@ _FLP: dict[str, dict[str, Any]] = {"default": {"episodes_per_member": 3, "env_ar
 
 # 2048: "default" trains on the scored game (horizon 1,000, where a greedy game lasts 259 moves) with one-hot
 # tiles and four games per member: without a planner, 30 minutes on the whole machine (2 workers) reach 5,076
-# and 5,069 (two seeds) against 4,633 and 4,736 with two games on the same host; on one core two games beat
+# and 5,069 (two seeds) against 4,633 and 4,736 with two games on a host as fast; on one core two games beat
 # one (4,728 against 4,459), one-hot tiles beat log2 (4,459 against 3,985) and training at horizon 1,000 beats
 # 500 (3,825) (docs/2048.md). Its games are hundreds of moves, so it halves the population (about 1.8 s an
 # iteration on the whole machine). "paper" plays 1000-move games with the log2 tiles.
