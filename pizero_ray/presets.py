@@ -54,8 +54,9 @@ _FLP: dict[str, dict[str, Any]] = {"default": {"episodes_per_member": 3, "env_ar
 # tiles and four games per member: without a planner, 30 minutes on the whole machine (2 workers) reach 5,076
 # and 5,069 (two seeds) against 4,633 and 4,736 with two games on a host as fast; on one core two games beat
 # one (4,728 against 4,459), one-hot tiles beat log2 (4,459 against 3,985) and training at horizon 1,000 beats
-# 500 (3,825) (docs/2048.md). Its games are hundreds of moves, so it halves the population (about 1.8 s an
-# iteration on the whole machine). "paper" plays 1000-move games with the log2 tiles.
+# 500 (3,825) (docs/2048.md). Its games are hundreds of moves, so it halves the population (an iteration on
+# the whole machine: about 1.8 s on the faster host, 4.9 s on the slower). "paper" plays 1000-move games with
+# the log2 tiles.
 _GAME2048: dict[str, dict[str, Any]] = {
     "default": {"population": 128, "episodes_per_member": 4, "env_args": {"horizon": 1000, "tile_encoding": "one_hot"}},
     "paper": {"env_args": {"horizon": 1000}},
