@@ -42,12 +42,17 @@ def instance_use(run: Path, episodes: int, seed: int) -> dict:
     evaluator = play.make_evaluator(agent, env, layout.unravel, episodes, final_states=True)
     scores, final_states = evaluator(theta, jax.random.PRNGKey(seed))
     objective = "max" if config.env == "flp" else "mean"
-    clients, facilities = np.asarray(final_states.clients), np.asarray(final_states.facilities)
+    summary = summarise_placements(np.asarray(scores), np.asarray(final_states.clients),
+                                   np.asarray(final_states.facilities), objective)
+    return {"run": str(run), "env": config.env, "planner": config.planner, "iteration": iteration,
+            "episodes": episodes, "seed": seed, **summary}
+
+
+def summarise_placements(scores: np.ndarray, clients: np.ndarray, facilities: np.ndarray, objective: str) -> dict:
+    """The agent's mean score beside its average placement's, and each facility's spread, over [I] instances."""
     average = facilities.mean(0)
     spread = np.sqrt(((facilities - average) ** 2).sum(-1).mean(0))
     return {
-        "run": str(run), "env": config.env, "planner": config.planner, "iteration": iteration,
-        "episodes": episodes, "seed": seed,
         "agent": float(np.mean(scores)),
         "agent_average_placement": float(placement_score(average, clients, objective).mean()),
         "average_placement": average.round(3).tolist(),
