@@ -1,20 +1,14 @@
 """scripts/flp_instance_use.py: an agent that ignores the instance scores what its average placement scores."""
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "flp_instance_use.py"
+from tests.scripts_loading import load_script
 
 
 @pytest.fixture(scope="module")
 def script():
-    spec = importlib.util.spec_from_file_location("flp_instance_use", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("flp_instance_use")
 
 
 def test_placement_score_is_minus_the_objective(script):

@@ -1,6 +1,5 @@
 """scripts/summarise_runs.py: the docs' JSON summaries come from run dirs and eval JSON, figures unchanged."""
 
-import importlib.util
 import json
 from pathlib import Path
 
@@ -8,16 +7,12 @@ import pytest
 
 from pizero_ray.config import build_config
 from pizero_ray.storage import run_dir
-
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "summarise_runs.py"
+from tests.scripts_loading import load_script
 
 
 @pytest.fixture(scope="module")
 def summarise():
-    spec = importlib.util.spec_from_file_location("summarise_runs", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("summarise_runs")
 
 
 def _run(path: Path, scores: list[float], spreads: list[float] | None = None) -> None:
