@@ -26,15 +26,16 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from envs import flp  # noqa: E402
 from pizero_ray.agent import episodes as play  # noqa: E402
 from pizero_ray.storage import runs  # noqa: E402
 
 
 def placement_score(facilities: np.ndarray, clients: np.ndarray, objective: str) -> np.ndarray:
-    """[I] scores (minus the cost) of placements [I, m, 2] or one placement [m, 2] on instances [I, n, 2]."""
+    """[I] scores (the environment's: minus ``flp.cost``) of placements [I, m, 2] or one placement [m, 2]
+    on instances [I, n, 2]."""
     facilities = np.broadcast_to(facilities, (clients.shape[0],) + facilities.shape[-2:])
-    distances = np.linalg.norm(clients[:, :, None, :] - facilities[:, None], axis=-1).min(-1)
-    return -(distances.max(1) if objective == "max" else distances.mean(1))
+    return -np.asarray(jax.vmap(lambda c, f: flp.cost(c, f, objective))(clients, facilities))
 
 
 def instance_use(run: Path, episodes: int, seed: int) -> dict:
