@@ -82,7 +82,7 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
     ("default", {"env": "collect"}, {**DEFAULT, "env": "collect", "env_args": {"view": "centred"}}),
     ("paper", {"env": "sokoban"}, {**PAPER, "env": "sokoban"}),
     ("tiny", {"env": "sokoban"}, {**TINY, "env": "sokoban"}),
-    ("default", {"env": "flp-mean"}, {**DEFAULT, "env": "flp-mean", "episodes_per_member": 3,
+    ("default", {"env": "flp-mean"}, {**DEFAULT, "env": "flp-mean", "episodes_per_member": 3, "weight_decay": 0.01,
                                       "env_args": {"view": "grid"}}),
     ("paper", {"env": "collect"}, {**PAPER, "env": "collect"}),
     # explicit values beat the environment's preset; --env-arg changes only the parameters it names
@@ -95,7 +95,7 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
     ("default", {"env": "sokoban", "population": 48},
      {**DEFAULT, "env": "sokoban", "population": 48, "chunk_size": 16, "env_args": {"view": "centred"}}),
     ("default", {"env": "flp", "episodes_per_member": 2},
-     {**DEFAULT, "env": "flp", "episodes_per_member": 2, "env_args": {"view": "grid"}}),
+     {**DEFAULT, "env": "flp", "episodes_per_member": 2, "weight_decay": 0.01, "env_args": {"view": "grid"}}),
     ("paper", {"env": "pacman", "population": 600, "seed": 7},
      {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}, "population": 600, "seed": 7}),
 ])
@@ -116,9 +116,13 @@ def test_presets_build_these_configs(preset, overrides, differences):
     ("default", {"method": "alphazero", "env": "flp", "num_simulations": 10}, {"num_simulations": 10}),
     ("default", {"method": "alphazero", "env": "tsp"}, {"num_simulations": 32}),
     ("default", {"method": "muzero", "env": "tsp"}, {"action_grid": 16}),
-    ("default", {"method": "pizero", "env": "flp"}, {"num_simulations": 10, "env_args": (("view", "grid"),)}),
-    # the baselines keep the flat client coordinates they were measured with; an explicit view still wins
-    ("default", {"method": "alphazero", "env": "flp"}, {"env_args": (("view", "flat"),)}),
+    ("default", {"method": "pizero", "env": "flp"},
+     {"num_simulations": 10, "weight_decay": 0.01, "env_args": (("view", "grid"),)}),
+    ("default", {"method": "es", "env": "flp-mean"}, {"weight_decay": 0.01}),
+    # the baselines keep the flat client coordinates and no decay, as measured; an explicit value still wins
+    ("default", {"method": "alphazero", "env": "flp"}, {"weight_decay": 0.0, "env_args": (("view", "flat"),)}),
+    ("default", {"method": "muzero", "env": "flp-mean"}, {"weight_decay": 0.0}),
+    ("default", {"method": "muzero", "env": "flp", "weight_decay": 0.001}, {"weight_decay": 0.001}),
     ("default", {"method": "muzero", "env": "flp-mean", "env_args": {"view": "grid"}},
      {"env_args": (("view", "grid"),)}),
     ("default", {"method": "muzero", "env": "pacman-po"}, {"replay_size": 1024, "batch_size": 128}),
