@@ -40,14 +40,17 @@ def summary(path: Path, eval_path: Path | None) -> dict:
     rows = run_dir.read_metrics(path)
     evals = run_dir.evaluated_rows(path)
     times = [r["iteration_time_s"] for r in rows if "iteration_time_s" in r]  # not on the untrained agent's row
+    norms = [r["parameter_norm"] for r in rows if "parameter_norm" in r]
     out = {
         "env": config.env, "method": config.method, "planner": config.planner, "env_args": config.env_args,
         "seed": config.seed, "population": config.population, "learning_rate": config.learning_rate,
-        "lr_decay_iterations": config.lr_decay_iterations,
+        "lr_decay_iterations": config.lr_decay_iterations, "weight_decay": config.weight_decay,
+        "episodes_per_member": config.episodes_per_member, "fitness_shaping": config.fitness_shaping,
         "sigma": config.sigma, "perturbation_rank": config.perturbation_rank,
         "iterations": rows[-1]["iteration"] if rows else 0,
         "training_s": round(rows[-1]["wall_time_s"], 1) if rows else 0.0,
         "median_iteration_s": round(statistics.median(times), 3) if times else None,
+        "parameter_norm_at_end": round(norms[-1], 1) if norms else None,
         "curve_iteration_score_wall_s": [[r["iteration"], r["eval_mean_score"], round(r["wall_time_s"], 1)]
                                          for r in evals],
     }

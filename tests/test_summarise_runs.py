@@ -18,7 +18,8 @@ def summarise():
 def _run(path: Path, scores: list[float], spreads: list[float] | None = None) -> None:
     run_dir.write_config(path, build_config("tiny", env="collect", planner="none", env_args={"view": "centred"}))
     spreads = spreads or [1.0] * len(scores)
-    rows = [{"iteration": i, "iteration_time_s": 0.5 + i, "wall_time_s": 2.0 * i, "mean_score": -9.0,
+    rows = [{"iteration": i, "iteration_time_s": 0.5 + i, "wall_time_s": 2.0 * i, "parameter_norm": 20.04 + i,
+             "mean_score": -9.0,
              "std_score": spread, "max_score": -9.0 + spread,
              **({"eval_mean_score": score} if score is not None else {})}
             for i, (score, spread) in enumerate(zip(scores, spreads), 1)]
@@ -41,6 +42,8 @@ def test_summary_keeps_the_curve_times_and_a_held_out_interval(summarise, tmp_pa
     assert a["iterations"] == 3 and a["training_s"] == 6.0 and a["median_iteration_s"] == 2.5
     assert a["curve_iteration_score_wall_s"] == [[0, -11.0, 0.0], [1, -9.5, 2.0], [3, -7.25, 6.0]]
     assert a["env_args"] == [["view", "centred"]] and a["planner"] == "none"
+    assert a["parameter_norm_at_end"] == 23.0
+    assert (a["weight_decay"], a["episodes_per_member"], a["fitness_shaping"]) == (0.0, 1, "centered_ranks")
     assert a["held_out"]["ci95"] == [-5.392, -4.608] and a["held_out"]["references"] == {"greedy_score": -1.0}
     assert "held_out" not in b and b["iterations"] == 1
 
