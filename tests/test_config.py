@@ -78,11 +78,11 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
     ("paper", {"env": "pacman"}, {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}}),
     ("default", {"env": "pacman-po"}, {**DEFAULT, "env": "pacman-po", "population": 128, "action_selection": "sample"}),
     ("default", {"env": "sokoban"}, {**DEFAULT, "env": "sokoban", "population": 64, "chunk_size": 16,
-                                     "env_args": {"view": "centred"}}),
+                                     "episodes_per_member": 4, "env_args": {"view": "centred"}}),
     ("default", {"env": "collect"}, {**DEFAULT, "env": "collect", "env_args": {"view": "centred"}}),
     ("paper", {"env": "sokoban"}, {**PAPER, "env": "sokoban"}),
     ("tiny", {"env": "sokoban"}, {**TINY, "env": "sokoban"}),
-    ("default", {"env": "flp-mean"}, {**DEFAULT, "env": "flp-mean", "episodes_per_member": 3, "weight_decay": 0.01,
+    ("default", {"env": "flp-mean"}, {**DEFAULT, "env": "flp-mean", "episodes_per_member": 12, "weight_decay": 0.01,
                                       "env_args": {"view": "grid"}}),
     ("paper", {"env": "collect"}, {**PAPER, "env": "collect"}),
     # explicit values beat the environment's preset; --env-arg changes only the parameters it names
@@ -90,10 +90,11 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
      {**PAPER, "env": "2048", "env_args": {"horizon": 1000, "tile_encoding": "one_hot"}}),
     ("paper", {"env": "2048", "env_args": {"horizon": 50}}, {**PAPER, "env": "2048", "env_args": {"horizon": 50}}),
     ("default", {"env": "sokoban", "env_args": (("levels", "/b/train"), ("view", "absolute"))},
-     {**DEFAULT, "env": "sokoban", "population": 64, "chunk_size": 16,
+     {**DEFAULT, "env": "sokoban", "population": 64, "chunk_size": 16, "episodes_per_member": 4,
       "env_args": {"levels": "/b/train", "view": "absolute"}}),
     ("default", {"env": "sokoban", "population": 48},
-     {**DEFAULT, "env": "sokoban", "population": 48, "chunk_size": 16, "env_args": {"view": "centred"}}),
+     {**DEFAULT, "env": "sokoban", "population": 48, "chunk_size": 16, "episodes_per_member": 4,
+      "env_args": {"view": "centred"}}),
     ("default", {"env": "flp", "episodes_per_member": 2},
      {**DEFAULT, "env": "flp", "episodes_per_member": 2, "weight_decay": 0.01, "env_args": {"view": "grid"}}),
     ("paper", {"env": "pacman", "population": 600, "seed": 7},
@@ -273,7 +274,7 @@ def test_a_run_dir_written_before_the_rename_still_reads():
 
     old = json.loads(build_config("default", env="flp").to_json())
     old["trials"] = old.pop("episodes_per_member")
-    assert Config.from_dict(old).episodes_per_member == 3
+    assert Config.from_dict(old).episodes_per_member == 12
     assert build_config("paper").episodes_per_member == 1  # the paper's "Trials: 5" are five runs, not episodes
 
 
