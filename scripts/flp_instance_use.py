@@ -27,8 +27,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from envs import flp  # noqa: E402
+from pizero_ray import methods  # noqa: E402
 from pizero_ray.agent import episodes as play  # noqa: E402
-from pizero_ray.storage import runs  # noqa: E402
 
 
 def placement_score(facilities: np.ndarray, clients: np.ndarray, objective: str) -> np.ndarray:
@@ -39,8 +39,8 @@ def placement_score(facilities: np.ndarray, clients: np.ndarray, objective: str)
 
 
 def instance_use(run: Path, episodes: int, seed: int) -> dict:
-    config, iteration, theta, env, layout, agent = runs.load_run(run)
-    evaluator = play.make_evaluator(agent, env, layout.unravel, episodes, final_states=True)
+    config, iteration, theta, env, layout, agent = methods.load_run(run)
+    evaluator = play.make_scorer(agent, env, layout.unravel, episodes, final_states=True)
     scores, final_states = evaluator(theta, jax.random.PRNGKey(seed))
     objective = "max" if config.env == "flp" else "mean"
     summary = summarise_placements(np.asarray(scores), np.asarray(final_states.clients),

@@ -1,4 +1,5 @@
-"""The layers, checked: the math imports neither Ray nor Orbax, and loading a run needs no Ray."""
+"""The layers, checked: the math imports neither Ray nor Orbax, storage builds no method, and loading a run
+needs no Ray."""
 
 import json
 import os
@@ -41,6 +42,17 @@ def test_the_math_imports_neither_ray_nor_orbax_nor_the_shell():
     assert not shell
 
 
+def test_storage_imports_neither_the_agent_nor_mctx():
+    """Storage saves, restores and hashes a run's state; building a method is ``pizero_ray.methods``' job."""
+    loaded = _loaded_after_importing(["pizero_ray.storage", "pizero_ray.storage.checkpoints",
+                                      "pizero_ray.storage.run_dir", "pizero_ray.storage.runs",
+                                      "pizero_ray.storage.tensorboard"])
+    assert "pizero_ray.storage.runs" in loaded  # the check sees real imports
+    assert not {"mctx", "ray"} & loaded
+    assert not {m for m in loaded if m.startswith(("pizero_ray.agent", "pizero_ray.es", "pizero_ray.baselines",
+                                                    "pizero_ray.methods", "pizero_ray.trainer", "pizero_ray.cli"))}
+
+
 def test_the_run_options_are_pure_dataclasses():
     """The CLI builds its options from them for every command: they import neither Ray nor JAX."""
     loaded = _loaded_after_importing(["pizero_ray.trainer.options"])
@@ -56,12 +68,13 @@ import json, sys
 from pathlib import Path
 import envs
 from pizero_ray.config import build_config
+from pizero_ray import methods
 from pizero_ray.storage import checkpoints, run_dir, runs
 from pizero_ray.cli.evaluate import evaluate_run
 path = Path({str(tmp_path)!r})
 config = build_config("tiny", env="tsp", planner="none")
 run_dir.write_config(path, config)
-state, _, _ = runs.initial_state(config, envs.make("tsp"))
+state, _, _ = methods.initial_state(config, envs.make("tsp"))
 writer = checkpoints.CheckpointWriter(path)
 runs.save(writer, config, state._replace(iteration=3))
 writer.close()

@@ -87,14 +87,14 @@ def record_episodes(agent: Agent, params: Params, env: Environment, key: jax.Arr
     return Trajectory(initial_states, states, actions, rewards, dones, scores)
 
 
-def make_evaluator(
+def make_scorer(
     agent: Agent, env: Environment, unravel: Callable[[jax.Array], Params], num_episodes: int,
     final_states: bool = False,
 ):
     """jit(theta [D], key) -> scores [num_episodes] of the unperturbed agent (and final states if asked)."""
 
-    def evaluate(theta: jax.Array, key: jax.Array):
+    def score(theta: jax.Array, key: jax.Array):
         _, last, scores, _ = _play(agent, unravel(theta), env, key, num_episodes, record=False)
         return (scores, last) if final_states else scores
 
-    return jax.jit(evaluate)
+    return jax.jit(score)

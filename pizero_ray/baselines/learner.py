@@ -34,8 +34,17 @@ from pizero_ray.config import Config
 
 class LearnerState(NamedTuple):
     theta: jax.Array  # flat float32 parameters (what checkpoints, eval and inspect read)
-    opt_state: dict  # {"adam": optax state, "replay": replay.Replay}: everything else training continues from
+    adam: optax.OptState
+    replay: replay.Replay  # the self-play episodes the updates sample from
     iteration: int
+
+    @property
+    def carried(self) -> dict:
+        """What training continues from besides theta and the iteration (what a checkpoint keeps of it)."""
+        return {"adam": self.adam, "replay": self.replay}
+
+    def with_carried(self, carried: dict) -> LearnerState:
+        return self._replace(adam=carried["adam"], replay=carried["replay"])
 
 
 class LearnerStats(NamedTuple):
@@ -81,8 +90,7 @@ def make_learner(config: Config, env: Environment) -> Learner:
         template = jax.eval_shape(functools.partial(replay.play, search, unravel(theta0), env, num_episodes=1),
                                   jax.random.PRNGKey(0))
         empty = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), template)
-        opt_state = {"adam": optimizer.init(unravel(theta0)), "replay": replay.replay_init(empty, config.replay_size)}
-        return LearnerState(theta0, opt_state, 0)
+        return LearnerState(theta0, optimizer.init(unravel(theta0)), replay.replay_init(empty, config.replay_size), 0)
 
     def update(carry, key):
         params, adam, buffer = carry
@@ -92,24 +100,24 @@ def make_learner(config: Config, env: Environment) -> Learner:
         return (optax.apply_updates(params, updates), adam, buffer), (loss, parts)
 
     @jax.jit
-    def step(theta, opt_state, iteration):
+    def step(theta, adam, buffer, iteration):
         key = jax.random.fold_in(jax.random.PRNGKey(config.seed), iteration)
         params = unravel(theta)
         episodes = replay.play(search, params, env, jax.random.fold_in(key, 0), config.selfplay_episodes)
-        buffer = replay.replay_add(opt_state["replay"], episodes)
+        buffer = replay.replay_add(buffer, episodes)
         update_keys = jax.random.split(jax.random.fold_in(key, 1), config.updates_per_iteration)
-        (params, adam, buffer), (loss, parts) = jax.lax.scan(update, (params, opt_state["adam"], buffer), update_keys)
+        (params, adam, buffer), (loss, parts) = jax.lax.scan(update, (params, adam, buffer), update_keys)
         scores = episodes.reward.sum(axis=1)
         stats = LearnerStats(scores.mean(), scores.std(), scores.max(), scores.min(), loss[-1],
                              jax.tree_util.tree_map(lambda x: x[-1], parts))
-        return ravel_pytree(params)[0], {"adam": adam, "replay": buffer}, stats
+        return ravel_pytree(params)[0], adam, buffer, stats
 
     def iterate(state: LearnerState) -> tuple[LearnerState, LearnerStats]:
         # Arrays restored from a checkpoint come with Orbax's sharding; placed as step's own outputs are, they
         # reuse its one compiled program instead of compiling another (twice: for them, then for its outputs).
-        theta, opt_state = jax.device_put((state.theta, state.opt_state), jax.devices()[0])
-        theta, opt_state, stats = step(theta, opt_state, state.iteration)
-        return LearnerState(theta, opt_state, state.iteration + 1), stats
+        theta, adam, buffer = jax.device_put((state.theta, state.adam, state.replay), jax.devices()[0])
+        theta, adam, buffer, stats = step(theta, adam, buffer, state.iteration)
+        return LearnerState(theta, adam, buffer, state.iteration + 1), stats
 
     agent = make_acting_agent(config, env, init_params)
     return Learner(init, iterate, agent, int(theta0.size), unravel)

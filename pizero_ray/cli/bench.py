@@ -102,14 +102,14 @@ def compile_rollout(config: Config, max_devices: int | None = None) -> CompiledR
     theta, _ = population.flat_params(config, envs.make(config.env, **config.env_kwargs()))
     theta = np.asarray(theta)
     started = time.perf_counter()
-    chunks = local_devices.ChunkEvaluator(config, max_devices)
+    chunks = local_devices.ChunkScorer(config, max_devices)
     chunks.wait_until_compiled()
     compile_s = time.perf_counter() - started  # every device's program
     first_pairs = range(0, config.population, config.chunk_size)
 
     def one_iteration(seed: int) -> float:
         t0 = time.perf_counter()
-        chunks.evaluate_all(theta, seed, first_pairs)  # returns once every chunk's scores are on the host
+        chunks.score_all(theta, seed, first_pairs)  # returns once every chunk's scores are on the host
         return time.perf_counter() - t0
 
     one_iteration(0)  # warm-up
@@ -233,7 +233,7 @@ def worker_memory(config: Config, cache_dir: str) -> float:
         ray.get(actor.ready.remote(), timeout=600)
         theta_ref = ray.put(np.asarray(theta))
         seed = es.iteration_seed(config.seed, 1)
-        ray.get([actor.evaluate_chunk.remote(theta_ref, seed, start)
+        ray.get([actor.score_chunk.remote(theta_ref, seed, start)
                  for start in range(0, config.population, config.chunk_size)], timeout=600)
         return ray.get(actor.peak_rss_mb.remote(), timeout=60)
     finally:

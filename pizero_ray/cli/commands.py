@@ -312,11 +312,11 @@ def _train_config(args):
     except ValueError as error:
         raise UsageError(str(error)) from None
     if config.init_from:  # checked (it is a run dir, its agent fits) before anything is written
-        from pizero_ray.storage import runs
+        from pizero_ray import methods
 
         config = dataclasses.replace(config, init_from=str(rundir.resolve(config.init_from)))
-        state, layout, _ = runs.initial_state(config, runs.make_env(config))
-        runs.warm_start(state, layout, Path(config.init_from))
+        state, layout, _ = methods.initial_state(config, methods.make_env(config))
+        methods.warm_start(state, layout, Path(config.init_from))
     return config
 
 
@@ -493,10 +493,11 @@ def _cmd_eval(args) -> int:
 
 
 def _cmd_inspect(args) -> int:
+    from pizero_ray import methods
     from pizero_ray.storage import checkpoints, runs
 
     run_path = _existing_run(args.run_dir)
-    config, iteration, theta, _, _, _ = runs.load_run(run_path)
+    config, iteration, theta, _, _, _ = methods.load_run(run_path)
     result = {
         "run_dir": str(run_path),
         "env": config.env,

@@ -22,15 +22,15 @@ def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None
     ``zero_memory`` holds the agent's memory at its initial zeros (``agent.without_memory``)."""
     import jax
 
+    from pizero_ray import methods
     from pizero_ray.agent import episodes as play
     from pizero_ray.agent import without_memory
-    from pizero_ray.storage import runs
 
-    config, iteration, theta, env, layout, agent = runs.load_run(run_path, env_args)
+    config, iteration, theta, env, layout, agent = methods.load_run(run_path, env_args)
     if zero_memory:
         agent = without_memory(agent)
     key = jax.random.PRNGKey(seed)
-    evaluator = play.make_evaluator(agent, env, layout.unravel, episodes, final_states=True)
+    evaluator = play.make_scorer(agent, env, layout.unravel, episodes, final_states=True)
     scores, final_states = evaluator(theta, key)
     scores = np.asarray(scores, dtype=np.float64)
     low, high = confidence_interval95(scores)

@@ -60,10 +60,10 @@ def play(run_path: Path, episodes: int, seed: int, env_args: dict | None = None)
     """``episodes`` episodes played by the run's unperturbed agent (its newest checkpoint), every step kept."""
     import jax
 
+    from pizero_ray import methods
     from pizero_ray.agent import episodes as play_episodes
-    from pizero_ray.storage import runs
 
-    config, _, theta, env, layout, agent = runs.load_run(run_path, env_args)
+    config, _, theta, env, layout, agent = methods.load_run(run_path, env_args)
     if env.render is None:
         raise ConfigError(f"environment {config.env!r} has no renderer")
     record = jax.jit(lambda th, key: play_episodes.record_episodes(agent, layout.unravel(th), env, key, episodes))

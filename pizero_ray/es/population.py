@@ -1,6 +1,6 @@
 """The population rollout: the hot path, pure JAX, one jitted function.
 
-``make_pair_evaluator`` builds the function a worker runs: for a chunk of pair
+``make_pair_scorer`` builds the function a worker runs: for a chunk of pair
 indices and their noise, it plays the same episodes with theta + sigma z and
 theta - sigma z and returns their mean scores [C, 2]. The noise comes in from
 ``es.GradientParts.noise`` (a pure function of the iteration seed and the
@@ -91,7 +91,7 @@ def perturbed_params(theta: jax.Array, noise: jax.Array, step: jax.Array, layout
     return jax.tree.unflatten(treedef, members)
 
 
-def make_pair_evaluator(config: Config, env: Environment, layout: FlatParams):
+def make_pair_scorer(config: Config, env: Environment, layout: FlatParams):
     """jit(theta [D], iteration_seed uint32, pair_indices [C], noise [C, noise_size]) -> scores [C, 2] (+z, -z).
 
     ``noise`` is the pairs' noise as ``es.gradient_parts(...).noise`` makes it

@@ -93,6 +93,14 @@ class ESState(NamedTuple):
     opt_state: optax.OptState
     iteration: int  # iterations done; the next one's seed is a function of it
 
+    @property
+    def carried(self) -> optax.OptState:
+        """What training continues from besides theta and the iteration (what a checkpoint keeps of it)."""
+        return self.opt_state
+
+    def with_carried(self, carried: optax.OptState) -> ESState:
+        return self._replace(opt_state=carried)
+
 
 class UpdateStats(NamedTuple):
     """What one ``tell`` saw and did: the scores that came in, and the step's sizes."""

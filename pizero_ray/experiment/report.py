@@ -63,12 +63,12 @@ def references(out: Path, experiment: grid.Experiment) -> dict[str, dict[str, fl
 def _reference_scores(experiment: grid.Experiment, env_name: str) -> dict[str, float]:
     import jax
 
+    from pizero_ray import methods
     from pizero_ray.agent import episodes
-    from pizero_ray.storage import runs
     from pizero_ray.trainer.driver import EVAL_SEED
 
     config = experiment.config(grid.Trial(env_name, "pizero", 0))
-    env = runs.other_env(config, runs.make_env(config), dict(dict(experiment.eval_env_args).get(env_name, ())))
+    env = methods.other_env(config, methods.make_env(config), dict(dict(experiment.eval_env_args).get(env_name, ())))
     if env.references is None:
         return {}
     keys = episodes.episode_reset_keys(jax.random.PRNGKey(EVAL_SEED), experiment.eval_episodes)

@@ -1,7 +1,9 @@
 """Orbax checkpoints of everything needed to continue training.
 
 Layout: RUN_DIR/checkpoints/<iteration>/{state, meta}. ``state`` holds the flat
-parameters and the complete optax state (Adam moments and count) as arrays;
+parameters (item ``theta``) and everything else training carries (item
+``opt_state``: the optax state, Adam's moments and count, and for the
+gradient-trained baselines the replay buffer too) as arrays;
 ``meta`` is JSON (iteration, seed, config, parameter hash, and a hash of the
 whole state). Orbax writes a step into a temporary directory and renames it
 when complete, so a save that dies half-way is never listed as a step; the
@@ -36,7 +38,7 @@ ITEMS = ("state", "meta")
 class Checkpoint(NamedTuple):
     iteration: int
     theta: np.ndarray
-    opt_state: Any
+    carried: Any
     meta: dict
 
 
@@ -66,11 +68,11 @@ class CheckpointWriter:
         logging.getLogger("absl").setLevel(logging.WARNING)
         self._manager = _manager(run_dir, max_to_keep)
 
-    def save(self, iteration: int, theta: np.ndarray, opt_state: Any, meta: dict) -> None:
+    def save(self, iteration: int, theta: np.ndarray, carried: Any, meta: dict) -> None:
         if iteration in self._manager.all_steps():
             return
-        state = {"theta": np.asarray(theta), "opt_state": opt_state}
-        meta = {**meta, "state_hash": state_hash(state["theta"], opt_state)}
+        state = {"theta": np.asarray(theta), "opt_state": carried}
+        meta = {**meta, "state_hash": state_hash(state["theta"], carried)}
         import orbax.checkpoint as ocp
 
         self._manager.save(
@@ -95,12 +97,12 @@ def checkpoint_steps(run_dir: Path) -> list[int]:
     return steps
 
 
-def state_hash(theta: np.ndarray, opt_state: Any) -> str:
+def state_hash(theta: np.ndarray, carried: Any) -> str:
     """sha256 over the parameters and every optimiser leaf: detects corruption Orbax cannot see."""
     import jax
 
     digest = hashlib.sha256()
-    for leaf in [theta, *jax.tree_util.tree_leaves(opt_state)]:
+    for leaf in [theta, *jax.tree_util.tree_leaves(carried)]:
         array = np.asarray(leaf)
         digest.update(str(array.dtype).encode() + str(array.shape).encode())
         digest.update(np.ascontiguousarray(array).tobytes())
@@ -227,7 +229,7 @@ def _restore_step(manager, step: int, target: dict) -> Checkpoint:
 
 
 def restore_latest(
-    run_dir: Path, theta_template: np.ndarray, opt_state_template: Any, quarantine_corrupt: bool = False
+    run_dir: Path, theta_template: np.ndarray, carried_template: Any, quarantine_corrupt: bool = False
 ) -> Checkpoint | None:
     """The newest good checkpoint, restored into the templates' structure; None if there is none.
 
@@ -241,7 +243,7 @@ def restore_latest(
     steps = checkpoint_steps(run_dir)
     if not steps:
         return None
-    target = {"theta": np.asarray(theta_template), "opt_state": opt_state_template}
+    target = {"theta": np.asarray(theta_template), "opt_state": carried_template}
     manager = _manager(run_dir)
     errors = []
     try:
@@ -307,11 +309,11 @@ def held_progress(run_dir: Path) -> list[str]:
 class Resume(NamedTuple):
     iteration: int
     theta: np.ndarray
-    opt_state: Any
+    carried: Any
     metrics: list[dict]  # metrics.jsonl's rows, now cut to ``iteration``
 
 
-def prepare_resume(run_dir: Path, theta_template: np.ndarray, opt_state_template: Any,
+def prepare_resume(run_dir: Path, theta_template: np.ndarray, carried_template: Any,
                    restart: bool = False) -> Resume:
     """Where training continues, with metrics.jsonl cut to match; the one place a resume changes a run dir.
 
@@ -325,17 +327,17 @@ def prepare_resume(run_dir: Path, theta_template: np.ndarray, opt_state_template
     if restart:
         _set_aside(run_dir)  # checkpoints first: a crash before the metrics leaves rows, so the next resume refuses
         metrics = rundir.keep_metrics_through(run_dir, -1, "pizero resume --restart: started again from iteration 0")
-        return Resume(0, np.asarray(theta_template), opt_state_template, metrics)
-    restored = restore_latest(run_dir, theta_template, opt_state_template, quarantine_corrupt=True)
+        return Resume(0, np.asarray(theta_template), carried_template, metrics)
+    restored = restore_latest(run_dir, theta_template, carried_template, quarantine_corrupt=True)
     if restored is None:
         held = held_progress(run_dir)
         if held:
             raise CheckpointError(f"run dir {run_dir} holds {' and '.join(held)} but no checkpoint to continue "
                                   f"from; to start again from iteration 0, keeping what it replaces, add --restart")
-        restored = Checkpoint(0, np.asarray(theta_template), opt_state_template, {})
+        restored = Checkpoint(0, np.asarray(theta_template), carried_template, {})
     metrics = rundir.keep_metrics_through(run_dir, restored.iteration,
                                           f"resumed from the checkpoint of iteration {restored.iteration}")
-    return Resume(restored.iteration, restored.theta, restored.opt_state, metrics)
+    return Resume(restored.iteration, restored.theta, restored.carried, metrics)
 
 
 def _set_aside(run_dir: Path) -> None:

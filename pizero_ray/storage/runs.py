@@ -1,6 +1,9 @@
-"""Loading a run to act with it: its config, its newest good checkpoint, its environment.
+"""A run's training state on disk: save it as a checkpoint, restore the newest good one, hash its parameters.
 
-What eval, render and inspect need, without the Ray trainer.
+The state is any of the methods' (``ESState``, ``LearnerState``): a NamedTuple
+with ``theta``, ``iteration`` and ``carried`` (what else training continues
+from: Adam's moments, a replay buffer), and ``with_carried`` to put that back.
+Storage never builds a method: ``pizero_ray.methods`` does.
 """
 
 from __future__ import annotations
@@ -8,96 +11,15 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
-from envs.base import Environment
-from pizero_ray.config import Config, ConfigError
-from pizero_ray.es.population import FlatParams
+from pizero_ray.config import Config
 from pizero_ray.storage import checkpoints
-from pizero_ray.storage import run_dir as rundir
 
 
 def parameter_hash(theta: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(theta, dtype="<f4").tobytes()).hexdigest()
-
-
-def make_env(config: Config, **env_args) -> Environment:
-    """The environment a run's method acts in: the baselines see continuous actions as a grid (envs.discretised)."""
-    import envs
-    from envs.discretised import discretise
-
-    env = envs.make(config.env, **{**config.env_kwargs(), **env_args})
-    if config.gradient_trained and not env.spec.discrete:
-        env = discretise(env, config.action_grid)
-    return env
-
-
-def initial_state(config: Config, env):
-    """A run's method, its initial state (parameters from config.seed) and the parameters' layout.
-
-    ES (pizero, es): the ES strategy over ``ESState``. AlphaZero and MuZero:
-    the ``Learner`` over ``LearnerState``. Both states hold ``theta``,
-    ``opt_state`` and ``iteration``: checkpoints treat them alike.
-    """
-    if config.gradient_trained:
-        from pizero_ray.baselines import make_learner
-
-        learner = make_learner(config, env)
-        return learner.init(), FlatParams(learner.size, learner.unravel, None), learner
-    from pizero_ray import es
-    from pizero_ray.es import population
-
-    theta, layout = population.flat_params(config, env)
-    strategy = es.make_strategy(config, layout.perturbation)
-    return strategy.init(theta), layout, strategy
-
-
-def warm_start(state, layout: FlatParams, source: Path):
-    """``state`` (a fresh run's) with its parameters replaced by run dir ``source``'s newest (``--init-from``).
-
-    The optimiser state and iteration stay fresh. Raises ConfigError, one line, if ``source`` is not a run dir
-    or its parameters do not fit ``layout``.
-    """
-    import jax
-    import jax.numpy as jnp
-
-    loaded = load_run(source)
-    shapes = jax.tree.map(np.shape, layout.unravel(jnp.asarray(state.theta)))
-    if jax.tree.map(np.shape, loaded.layout.unravel(loaded.theta)) != shapes:  # the same shapes: the same size
-        raise ConfigError(f"--init-from {source}: its agent ({loaded.config.method} on {loaded.config.env}, "
-                          f"{loaded.theta.size} parameters) does not fit this run's ({layout.size} parameters)")
-    return state._replace(theta=jnp.asarray(loaded.theta, jnp.float32))
-
-
-def other_env(config: Config, trained_env: Environment, env_args: dict | None) -> Environment:
-    """The run's environment with ``env_args`` changed (other levels, say), or ``trained_env`` without any.
-
-    A different horizon is fine (longer games); different shapes are not: the trained agent could not act.
-    """
-    if not env_args:
-        return trained_env
-    try:
-        env = make_env(config, **env_args)
-    except ValueError as error:
-        raise ConfigError(str(error)) from None
-    if env.spec._replace(horizon=0) != trained_env.spec._replace(horizon=0):
-        raise ConfigError(f"env args {env_args} change the environment's shapes: the trained agent cannot act")
-    return env
-
-
-def acting_agent(config: Config, env: Environment, method=None):
-    """The agent that plays a run's episodes (``method``: initial_state's third value, if at hand)."""
-    if config.gradient_trained:
-        if method is None:
-            from pizero_ray.baselines import make_learner
-
-            method = make_learner(config, env)
-        return method.agent
-    from pizero_ray.agent import make_agent
-
-    return make_agent(config, env.spec)
 
 
 def restore(run_path: Path, state, **resume_options):
@@ -108,9 +30,9 @@ def restore(run_path: Path, state, **resume_options):
     """
     import jax.numpy as jnp
 
-    resumed = checkpoints.prepare_resume(run_path, np.asarray(state.theta), state.opt_state, **resume_options)
-    restored = state._replace(theta=jnp.asarray(resumed.theta), opt_state=resumed.opt_state,
-                              iteration=resumed.iteration)
+    resumed = checkpoints.prepare_resume(run_path, np.asarray(state.theta), state.carried, **resume_options)
+    restored = state.with_carried(resumed.carried)._replace(theta=jnp.asarray(resumed.theta),
+                                                              iteration=resumed.iteration)
     return restored, resumed.metrics
 
 
@@ -119,31 +41,4 @@ def save(writer, config: Config, state) -> None:
     theta = np.asarray(state.theta)
     meta = {"iteration": state.iteration, "seed": config.seed, "config": json.loads(config.to_json()),
             "parameter_hash": parameter_hash(theta)}
-    writer.save(state.iteration, theta, state.opt_state, meta)
-
-
-class LoadedRun(NamedTuple):
-    config: Config
-    iteration: int
-    theta: np.ndarray  # flat parameters
-    env: Environment
-    layout: FlatParams
-    agent: object  # pizero_ray.agent.Agent: what plays the run's episodes
-
-
-def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
-    """A run dir's newest good checkpoint (or its initial parameters), with its environment.
-
-    ``env_args`` override the run's environment parameters (evaluate on other
-    levels, say); they may not change the agent's shape.
-    """
-    config = rundir.read_config(run_path)
-    trained_env = make_env(config)
-    state, layout, method = initial_state(config, trained_env)
-    theta, opt_state = np.asarray(state.theta), state.opt_state
-    env = other_env(config, trained_env, env_args)
-    agent = acting_agent(config, env, method if env is trained_env else None)
-    restored = checkpoints.restore_latest(run_path, theta, opt_state)
-    if restored is None:
-        return LoadedRun(config, 0, theta, env, layout, agent)
-    return LoadedRun(config, restored.iteration, restored.theta, env, layout, agent)
+    writer.save(state.iteration, theta, state.carried, meta)

@@ -2,7 +2,7 @@
 
 Each iteration (``_Run.iterate``): ask the ES strategy for the iteration
 seed (a function of the run seed and the iteration), put the parameters in
-the object store once, let the worker pool evaluate the queue of chunks of
+the object store once, let the worker pool score the queue of chunks of
 pair indices, turn the scores into per-pair weights, collect each chunk's
 share of the pseudo-gradient from the worker that still holds the chunk's
 noise (or regenerate it here), and tell the strategy the shares: it adds
@@ -24,6 +24,7 @@ from typing import Callable
 
 import numpy as np
 
+from pizero_ray import methods
 from pizero_ray.config import Config
 from pizero_ray.storage import checkpoints, runs, tensorboard
 from pizero_ray.storage import run_dir as rundir
@@ -69,17 +70,17 @@ class _Run:
         from pizero_ray.agent import episodes
 
         self.config, self.options = config, options
-        env = runs.make_env(config)
-        state, self.layout, self.strategy = runs.initial_state(config, env)  # ES strategy, or a baseline's Learner
+        env = methods.make_env(config)
+        state, self.layout, self.method = methods.initial_state(config, env)  # ES strategy, or a baseline's Learner
         if config.init_from and (options.restart or not checkpoints.checkpoint_steps(run_path)):
-            state = runs.warm_start(state, self.layout, Path(config.init_from))  # then saved as checkpoint 0
+            state = methods.warm_start(state, self.layout, Path(config.init_from))  # then saved as checkpoint 0
         self.state, self.metrics = runs.restore(run_path, state, restart=options.restart)
         self.start_iteration = self.state.iteration
-        self.evaluator = None
+        self.held_out = None
         if options.eval_every > 0 or options.eval_every_minutes is not None:
-            eval_env = runs.other_env(config, env, dict(options.eval_env_args))
-            agent = runs.acting_agent(config, eval_env, self.strategy if eval_env is env else None)
-            self.evaluator = episodes.make_evaluator(agent, eval_env, self.layout.unravel, options.eval_episodes)
+            eval_env = methods.other_env(config, env, dict(options.eval_env_args))
+            agent = methods.acting_agent(config, eval_env, self.method if eval_env is env else None)
+            self.held_out = episodes.make_scorer(agent, eval_env, self.layout.unravel, options.eval_episodes)
         # The gradient-trained baselines learn in this process; ES farms its population out to the pool.
         self.pool = None if config.gradient_trained else WorkerPool(config, options.pool)
         self.writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)
@@ -94,11 +95,11 @@ class _Run:
     def save(self) -> None:
         runs.save(self.writer, self.config, self.state)
 
-    def evaluate(self) -> float:
+    def held_out_score(self) -> float:
         import jax
 
         started = time.time()
-        score = float(self.evaluator(self.state.theta, jax.random.PRNGKey(EVAL_SEED)).mean())
+        score = float(self.held_out(self.state.theta, jax.random.PRNGKey(EVAL_SEED)).mean())
         self.evaluating_s += time.time() - started
         return score
 
@@ -121,9 +122,9 @@ class _Run:
     def begin(self) -> None:
         if self.state.iteration == 0:
             self.save()  # a run killed before its first periodic checkpoint still resumes (prepare_resume)
-        if self.evaluator is not None and not self.metrics:
+        if self.held_out is not None and not self.metrics:
             # Row 0: the untrained agent, so every learning curve has its starting point.
-            self.write({"iteration": 0, "eval_mean_score": self.evaluate(), "wall_time_s": 0.0})
+            self.write({"iteration": 0, "eval_mean_score": self.held_out_score(), "wall_time_s": 0.0})
 
     def iterate(self, stop: Callable[[], bool]) -> dict:
         """One iteration of the run's method; raises Interrupted on a stop (ES)."""
@@ -132,7 +133,7 @@ class _Run:
     def _learn(self) -> dict:
         """A baseline's iteration: self-play, replay, Adam steps (one jitted call)."""
         started = time.time()
-        state, stats = self.strategy.iterate(self.state)
+        state, stats = self.method.iterate(self.state)
         state.theta.block_until_ready()
         self.state = state
         losses = {"loss": stats.loss, **stats.parts}
@@ -146,15 +147,15 @@ class _Run:
         import ray
 
         started = time.time()
-        seed = self.strategy.ask(self.state)
+        seed = self.method.ask(self.state)
         theta_ref = ray.put(np.asarray(self.state.theta))  # once per iteration; each node fetches it once
-        result = self.pool.evaluate(theta_ref, seed, self.state.iteration, should_stop=stop)
+        result = self.pool.score_population(theta_ref, seed, self.state.iteration, should_stop=stop)
         scored = time.time()
-        weights = self.strategy.weights(result.scores, result.valid)
+        weights = self.method.weights(result.scores, result.valid)
         parts, parts_here = self.pool.gradient_parts(
-            seed, weights, result.owners, functools.partial(self.strategy.parts.chunk_here, seed, weights),
+            seed, weights, result.owners, functools.partial(self.method.parts.chunk_here, seed, weights),
             should_stop=stop)
-        state, stats = self.strategy.tell(self.state, result.scores, result.valid, parts)
+        state, stats = self.method.tell(self.state, result.scores, result.valid, parts)
         state.theta.block_until_ready()
         self.state = state  # only a finished iteration moves the state: an interrupted one is dropped
         now = time.time()
@@ -174,8 +175,8 @@ class _Run:
         # Decided once per iteration, at the row's clock: the loop stops on the same verdict, so the row that
         # ends a run is always the evaluated one (a fresh look at the clock a moment later could differ).
         self.finished = self.reached_iterations() or self.out_of_time(row["wall_time_s"])
-        if self.evaluator is not None and (self.eval_due(iteration, row["wall_time_s"]) or self.finished):
-            row["eval_mean_score"] = self.evaluate()
+        if self.held_out is not None and (self.eval_due(iteration, row["wall_time_s"]) or self.finished):
+            row["eval_mean_score"] = self.held_out_score()
             self.next_eval_s = _next_multiple(row["wall_time_s"], options.eval_every_minutes)
         self.write(row)
         if options.checkpoint_every > 0 and iteration % options.checkpoint_every == 0:

@@ -4,11 +4,11 @@ XLA's CPU backend runs the rollout's many small operations (the search's
 while loops, member-sized products) on one thread, so a process with one CPU
 device leaves its other cores partly idle. A process with N cores therefore
 asks JAX for N CPU devices (``configure_cpu_devices``) and runs whole chunks
-on all of them concurrently (``ChunkEvaluator``). Each device runs the same
+on all of them concurrently (``ChunkScorer``). Each device runs the same
 single-device program on a whole chunk, so a chunk's scores do not depend on
 which device, or how many, computed it: the trainer stays deterministic
 whatever its workers' sizes. On a GPU node the devices are the GPUs the
-process may see. The evaluator keeps each chunk's noise for the chunk's share
+process may see. The scorer keeps each chunk's noise for the chunk's share
 of the gradient (``NoiseCache``), and ``CoreClaim`` keeps worker processes off
 each other's cores.
 """
@@ -161,10 +161,10 @@ class NoiseCache:
         return len(self._noise)
 
 
-class ChunkEvaluator:
-    """The population rollout compiled for each local device: ``evaluate`` one chunk, or ``evaluate_all``.
+class ChunkScorer:
+    """The population rollout compiled for each local device: ``score`` one chunk, or ``score_all``.
 
-    ``evaluate`` may be called from several threads at once (a threaded Ray
+    ``score`` may be called from several threads at once (a threaded Ray
     actor): each call borrows a free device for the chunk's duration, and
     keeps the chunk's noise for ``gradient_part``. The noise is made on the
     device by ``es.GradientParts.noise``, the function that regenerates it
@@ -187,7 +187,7 @@ class ChunkEvaluator:
         self.parameters = layout.size
         self.agent_steps_per_pair = 2 * config.episodes_per_member * env.spec.horizon
         self.devices = jax.local_devices()[:max_devices]
-        evaluate = population.make_pair_evaluator(config, env, layout)
+        pair_scores = population.make_pair_scorer(config, env, layout)
         self._parts = es.gradient_parts(config, layout.perturbation)
         self._kept = NoiseCache(config.chunk_size * layout.perturbation.noise_size * 4)
 
@@ -195,7 +195,7 @@ class ChunkEvaluator:
             on = SingleDeviceSharding(device)
             seed = jax.ShapeDtypeStruct((), jnp.uint32, sharding=on)
             noise = self._parts.noise.lower(seed, jax.ShapeDtypeStruct((), jnp.int32, sharding=on)).compile()
-            scores = evaluate.lower(
+            scores = pair_scores.lower(
                 jax.ShapeDtypeStruct((layout.size,), jnp.float32, sharding=on),
                 seed,
                 jax.ShapeDtypeStruct((config.chunk_size,), jnp.int32, sharding=on),
@@ -220,7 +220,7 @@ class ChunkEvaluator:
             for index in range(1, len(self.devices)):
                 self._compiled[index] = compile_for(self.devices[index])
                 self._free.put(index)
-        except BaseException as error:  # the worker goes on with the devices it has; evaluate_all reports it
+        except BaseException as error:  # the worker goes on with the devices it has; score_all reports it
             self._compile_error = error
 
     def wait_until_compiled(self) -> None:
@@ -235,7 +235,7 @@ class ChunkEvaluator:
 
     @property
     def regenerated_parts(self) -> int:
-        """Gradient parts this evaluator had to regenerate the noise for (it had not kept it)."""
+        """Gradient parts this scorer had to regenerate the noise for (it had not kept it)."""
         return self._kept.misses
 
     def _dispatch(self, index: int, theta, seed: int, first_pair: int):
@@ -248,7 +248,7 @@ class ChunkEvaluator:
         noise = make_noise(seed, put(np.int32(first_pair), device))
         return score(put(theta, device), seed, put(pairs, device), noise), noise
 
-    def evaluate(self, theta: np.ndarray, seed: int, first_pair: int) -> np.ndarray:
+    def score(self, theta: np.ndarray, seed: int, first_pair: int) -> np.ndarray:
         """Scores [chunk_size, 2] of the pairs from ``first_pair`` on, on whichever device is free."""
         index = self._free.get()
         try:
@@ -266,7 +266,7 @@ class ChunkEvaluator:
             return self._parts.regenerated(seed, first_pair, weights)
         return self._parts.from_noise(weights, noise)
 
-    def evaluate_all(self, theta: np.ndarray, seed: int, first_pairs: Sequence[int]) -> list[np.ndarray]:
+    def score_all(self, theta: np.ndarray, seed: int, first_pairs: Sequence[int]) -> list[np.ndarray]:
         """Many chunks, dealt round-robin over the devices and run concurrently (one thread)."""
         self.wait_until_compiled()
         theta = np.asarray(theta, np.float32)

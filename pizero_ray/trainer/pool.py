@@ -145,7 +145,7 @@ class WorkerPool:
 
     # ------------------------------------------------------------------ one iteration
 
-    def evaluate(
+    def score_population(
         self, theta_ref, seed: int, iteration: int = 0, should_stop: Callable[[], bool] = lambda: False
     ) -> IterationResult:
         """Scores of every chunk of the population (or ``min_fraction`` of them) at ``theta_ref``."""
@@ -290,7 +290,7 @@ class _ChunkQueue:
             devices = worker.info.get("devices", 1)  # chunks the worker runs at once
             while worker.ready and self.pending and worker.in_flight < options.in_flight_per_worker * devices:
                 index = self.pending.popleft()
-                ref = worker.actor.evaluate_chunk.remote(self.theta_ref, self.seed, index * self.chunk)
+                ref = worker.actor.score_chunk.remote(self.theta_ref, self.seed, index * self.chunk)
                 # The deadline allows for the chunks queued ahead of this one on the worker.
                 deadline = time.time() + options.chunk_timeout_s * (worker.in_flight // devices + 1)
                 self.in_flight[ref] = (index, worker, deadline)

@@ -1,11 +1,11 @@
-"""Ray worker actors: each holds the compiled population rollout and evaluates chunks.
+"""Ray worker actors: each holds the compiled population rollout and scores chunks.
 
 A worker compiles its rollout ahead of time in ``__init__`` (a hit in JAX's
 persistent compilation cache when another worker compiled the same program
 before), so "ready" means "can return a chunk in one rollout's time", and the
 driver's per-chunk timeout need not allow for compiles.
 
-A CPU worker with N CPUs runs N JAX CPU devices and evaluates up to N chunks
+A CPU worker with N CPUs runs N JAX CPU devices and scores up to N chunks
 at once, one per device (``local_devices``); a GPU worker uses the GPUs Ray
 gave it the same way.
 """
@@ -37,7 +37,7 @@ class RolloutWorker:
         from pizero_ray.config import Config
 
         self.config = Config.from_json(config_json)
-        self._chunks = local_devices.ChunkEvaluator(self.config)
+        self._chunks = local_devices.ChunkScorer(self.config)
         self._info = {
             "pid": os.getpid(),
             "node_id": ray.get_runtime_context().get_node_id(),
@@ -54,8 +54,8 @@ class RolloutWorker:
         """This worker process's peak resident memory (for `pizero bench`)."""
         return local_devices.peak_rss_mb()
 
-    def evaluate_chunk(self, theta: np.ndarray, iteration_seed: int, first_pair: int) -> np.ndarray:
-        return self._chunks.evaluate(theta, iteration_seed, first_pair)
+    def score_chunk(self, theta: np.ndarray, iteration_seed: int, first_pair: int) -> np.ndarray:
+        return self._chunks.score(theta, iteration_seed, first_pair)
 
     def gradient_part(self, iteration_seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
         """The chunk's share of the pseudo-gradient, from the noise kept while evaluating it."""

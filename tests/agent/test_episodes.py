@@ -9,7 +9,7 @@ from pizero_ray.es import population
 def test_run_episodes_scores_every_episode(tiny_config, tsp_env):
     theta, layout = population.flat_params(tiny_config, tsp_env)
     agent = make_agent(tiny_config, tsp_env.spec)
-    scores = episodes.make_evaluator(agent, tsp_env, layout.unravel, 7)(theta, jax.random.PRNGKey(0))
+    scores = episodes.make_scorer(agent, tsp_env, layout.unravel, 7)(theta, jax.random.PRNGKey(0))
     assert scores.shape == (7,)
     assert np.all(np.asarray(scores) < -1.0)
 
@@ -46,7 +46,7 @@ def test_scoring_stops_once_every_episode_ended_with_the_scans_scores_and_final_
     agent = make_agent(tiny_config, env.spec)
     theta, layout = population.flat_params(tiny_config, env)
     key = jax.random.PRNGKey(5)
-    scores, final_states = episodes.make_evaluator(agent, env, layout.unravel, 6, final_states=True)(theta, key)
+    scores, final_states = episodes.make_scorer(agent, env, layout.unravel, 6, final_states=True)(theta, key)
     jax.effects_barrier()
     played = len(steps_taken)
     trajectory = jax.jit(lambda p: episodes.record_episodes(agent, p, env, key, 6))(layout.unravel(theta))

@@ -82,7 +82,7 @@ def test_checkpoint_and_resume_give_the_parameters_of_an_uninterrupted_run(tmp_p
     runs.save(writer, config, state)  # parameters, Adam state and the replay buffer
     writer.close()
     resumed, _ = runs.restore(tmp_path, learner.init())
-    assert resumed.iteration == 2 and int(resumed.opt_state["replay"].filled) == 8
+    assert resumed.iteration == 2 and int(resumed.replay.filled) == 8
     for _ in range(2):
         resumed, _ = learner.iterate(resumed)
     assert resumed.iteration == straight.iteration == 4

@@ -12,7 +12,7 @@ from pizero_ray.es import population
 def pair_scorer(config, env):
     """(theta, scores(seed, first_pair) of the chunk from first_pair on), as a worker computes them."""
     theta, layout = population.flat_params(config, env)
-    evaluate = population.make_pair_evaluator(config, env, layout)
+    evaluate = population.make_pair_scorer(config, env, layout)
     noise = es.gradient_parts(config, layout.perturbation).noise  # the function that regenerates the noise
 
     def scores(seed, first_pair=0):

@@ -10,9 +10,10 @@ from pathlib import Path
 
 import pytest
 
+from pizero_ray import methods
 from pizero_ray.cli import main
 from pizero_ray.config import build_config
-from pizero_ray.storage import checkpoints, run_dir, runs
+from pizero_ray.storage import checkpoints, run_dir
 from pizero_ray.trainer import driver
 
 ITERATIONS = 12
@@ -176,8 +177,8 @@ def _templates():
     import envs
 
     env = envs.make(CONFIG.env, **CONFIG.env_kwargs())
-    state, _, _ = runs.initial_state(CONFIG, env)
-    return np.asarray(state.theta), state.opt_state
+    state, _, _ = methods.initial_state(CONFIG, env)
+    return np.asarray(state.theta), state.carried
 
 
 def _dropped(path):
@@ -333,7 +334,7 @@ def test_a_decaying_step_size_resumes_where_its_schedule_stood(tmp_path):
     writer.close()
     restored = checkpoints.restore_latest(tmp_path, np.asarray(theta), optimizer.init(theta))
     assert restored.iteration == 2
-    after_resume, _ = optimizer.update(gradient, restored.opt_state, theta)
+    after_resume, _ = optimizer.update(gradient, restored.carried, theta)
     uninterrupted, _ = optimizer.update(gradient, state, theta)
     np.testing.assert_array_equal(np.asarray(after_resume), np.asarray(uninterrupted))
     assert 0.0 < float(jnp.linalg.norm(after_resume)) < float(jnp.linalg.norm(optimizer.update(

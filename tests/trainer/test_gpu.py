@@ -31,11 +31,11 @@ def test_kept_and_regenerated_noise_are_bit_identical_on_the_gpu():
     from pizero_ray.trainer import local_devices
 
     config = build_config("default", env="tsp", population=64, chunk_size=32)
-    chunks = local_devices.ChunkEvaluator(config, max_devices=1)
+    chunks = local_devices.ChunkScorer(config, max_devices=1)
     assert chunks.devices[0].platform == "gpu"
     theta, layout = population.flat_params(config, envs.make("tsp"))
     seed, first_pair = 12345, 32
-    scores = chunks.evaluate(np.asarray(theta), seed, first_pair)
+    scores = chunks.score(np.asarray(theta), seed, first_pair)
     assert scores.shape == (32, 2) and np.isfinite(scores).all()
     weights = np.random.default_rng(0).standard_normal(32).astype(np.float32)
     kept = chunks.gradient_part(seed, first_pair, weights)

@@ -22,7 +22,7 @@ def theta_and_reference():
     """Initial parameters, and every chunk's scores from the plain jitted functions on the default device."""
     env = envs.make(CONFIG.env, **CONFIG.env_kwargs())
     theta, layout = population.flat_params(CONFIG, env)
-    evaluate = population.make_pair_evaluator(CONFIG, env, layout)
+    evaluate = population.make_pair_scorer(CONFIG, env, layout)
     noise = es.gradient_parts(CONFIG, layout.perturbation).noise
     reference = [np.asarray(evaluate(theta, np.uint32(SEED), np.arange(first, first + CONFIG.chunk_size),
                                      noise(np.uint32(SEED), np.int32(first))))
@@ -32,7 +32,7 @@ def theta_and_reference():
 
 @pytest.fixture(scope="module")
 def chunks():
-    return local_devices.ChunkEvaluator(CONFIG)
+    return local_devices.ChunkScorer(CONFIG)
 
 
 def test_the_test_process_has_two_cpu_devices(chunks):
@@ -43,7 +43,7 @@ def test_the_test_process_has_two_cpu_devices(chunks):
 
 def test_chunks_dealt_over_both_devices_score_as_on_one(chunks, theta_and_reference):
     theta, reference = theta_and_reference
-    scores = chunks.evaluate_all(theta, SEED, FIRST_PAIRS)
+    scores = chunks.score_all(theta, SEED, FIRST_PAIRS)
     assert len(scores) == len(reference)
     for got, want in zip(scores, reference):
         np.testing.assert_array_equal(got, want)
@@ -56,7 +56,7 @@ def test_a_chunks_gradient_part_from_kept_noise_equals_the_regenerated_one(chunk
     layout = population.flat_params(CONFIG, envs.make(CONFIG.env, **CONFIG.env_kwargs()))[1]
     driver_parts = es.gradient_parts(CONFIG, layout.perturbation)  # as the driver regenerates a part
     for first in (0, 2):  # one chunk on each device, as two threads of a worker would run them
-        chunks.evaluate(theta, SEED, first)
+        chunks.score(theta, SEED, first)
     for first in (0, 2):
         regenerated_before = chunks.regenerated_parts
         kept = chunks.gradient_part(SEED, first, weights)
@@ -65,7 +65,7 @@ def test_a_chunks_gradient_part_from_kept_noise_equals_the_regenerated_one(chunk
         np.testing.assert_array_equal(kept, driver_parts.regenerated(SEED, first, weights))
         np.testing.assert_array_equal(kept, chunks.gradient_part(SEED, first, weights))  # used up: regenerated
         assert chunks.regenerated_parts == regenerated_before + 1
-    chunks.evaluate(theta, SEED + 1, 2)
+    chunks.score(theta, SEED + 1, 2)
     assert not np.array_equal(chunks.gradient_part(SEED + 1, 2, weights), kept)
 
 
@@ -73,10 +73,10 @@ def test_a_straggler_of_an_older_iteration_keeps_the_newer_ones_noise(chunks, th
     theta, _ = theta_and_reference
     weights = np.ones(CONFIG.chunk_size, np.float32)
     old, new = SEED + 100, SEED + 101
-    chunks.evaluate(theta, old, 0)
-    chunks.evaluate(theta, new, 0)
-    chunks.evaluate(theta, new, 2)
-    chunks.evaluate(theta, old, 4)  # the old iteration's straggler finishes during the new one
+    chunks.score(theta, old, 0)
+    chunks.score(theta, new, 0)
+    chunks.score(theta, new, 2)
+    chunks.score(theta, old, 4)  # the old iteration's straggler finishes during the new one
     regenerated_before = chunks.regenerated_parts
     chunks.gradient_part(new, 0, weights)
     chunks.gradient_part(new, 2, weights)
@@ -106,7 +106,7 @@ def test_concurrent_calls_each_borrow_a_device_and_score_as_on_one(chunks, theta
         results = {}
 
         def evaluate(index, first, results=results):
-            results[index] = chunks.evaluate(theta, SEED, first)
+            results[index] = chunks.score(theta, SEED, first)
 
         threads = [threading.Thread(target=evaluate, args=(i, first)) for i, first in enumerate(FIRST_PAIRS)]
         for thread in threads:
@@ -128,7 +128,7 @@ def test_a_worker_with_two_cpus_runs_two_devices(ray_session, compile_cache_dir,
         assert info["devices"] == 2
         if local_devices.cpu_count() == 2:
             assert info["pinned_cores"] == []  # both cores: nothing to pin
-        refs = [actor.evaluate_chunk.remote(theta, SEED, first) for first in FIRST_PAIRS]
+        refs = [actor.score_chunk.remote(theta, SEED, first) for first in FIRST_PAIRS]
         for got, want in zip(ray_session.get(refs, timeout=300), reference):
             np.testing.assert_array_equal(got, want)
     finally:

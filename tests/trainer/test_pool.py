@@ -2,8 +2,9 @@
 
 import pytest
 
+from pizero_ray import methods
 from pizero_ray.config import build_config
-from pizero_ray.storage import run_dir, runs
+from pizero_ray.storage import run_dir
 from pizero_ray.trainer import driver
 from tests.conftest import OBJECT_STORE_BYTES
 
@@ -110,13 +111,13 @@ def test_gradient_parts_of_a_dead_worker_are_computed_by_the_driver(ray_session,
     pool = WorkerPool(CONFIG, PoolOptions(workers=1, compile_cache=compile_cache_dir))
     try:
         theta_ref = ray_session.put(np.asarray(theta))
-        result = pool.evaluate(theta_ref, seed)
+        result = pool.score_population(theta_ref, seed)
         weights = strategy.weights(result.scores, result.valid)
         compute_here = functools.partial(strategy.parts.chunk_here, seed, weights)
         from_worker, computed_here = pool.gradient_parts(seed, weights, result.owners, compute_here)
         assert computed_here == 0  # the worker kept every chunk's noise
 
-        result = pool.evaluate(theta_ref, seed)  # again, then the worker dies before the parts are asked for
+        result = pool.score_population(theta_ref, seed)  # again, then the worker dies before the parts are asked for
         (worker,) = {id(owner): owner for owner in result.owners.values()}.values()  # the pool's one worker
         ray_session.kill(worker.actor, no_restart=True)
         _wait_until_dead(ray_session, worker.actor)  # kill is asynchronous: a queued call could still be served
@@ -158,7 +159,7 @@ def test_gpu_workers_regenerate_a_dead_workers_parts(ray_session, ray_cluster, c
         theta_ref = ray_session.put(np.asarray(theta))
         deadline = time.time() + 300
         while time.time() < deadline:  # until both workers are up and each evaluated a chunk
-            result = pool.evaluate(theta_ref, seed)
+            result = pool.score_population(theta_ref, seed)
             if len({id(owner) for owner in result.owners.values()}) == 2:
                 break
             time.sleep(1)
@@ -220,7 +221,7 @@ def _fake_workers(monkeypatch, hang_on=None, part_delay_s=0.0, sigterm_on_seed=N
             import ray
             return {"pid": os.getpid(), "node_id": ray.get_runtime_context().get_node_id(), "devices": 1}
 
-        def evaluate_chunk(self, theta, seed, first_pair):
+        def score_chunk(self, theta, seed, first_pair):
             import time
 
             import numpy as np
@@ -268,7 +269,7 @@ def test_a_stop_interrupts_the_wait_for_slow_gradient_parts(ray_session, monkeyp
     _fake_workers(monkeypatch, part_delay_s=3600)
     pool = WorkerPool(CONFIG, PoolOptions(workers=1, compile_cache=None))  # the chunk timeout is 300 s
     try:
-        result = pool.evaluate(ray_session.put(np.zeros(3, np.float32)), 1)
+        result = pool.score_population(ray_session.put(np.zeros(3, np.float32)), 1)
         stop_at = time.time() + 0.3
         with pytest.raises(Interrupted):
             pool.gradient_parts(1, np.ones(CONFIG.population, np.float32), result.owners, _never,
@@ -290,7 +291,7 @@ def test_sigterm_while_waiting_for_gradient_parts_saves_the_last_finished_iterat
     assert time.time() - started < 120
     assert result["stopped_by"] == "SIGTERM" and result["iteration"] == 1
     assert [row["iteration"] for row in rows] == [1]
-    assert runs.load_run(tmp_path).iteration == 1  # the checkpoint saved on the way out
+    assert methods.load_run(tmp_path).iteration == 1  # the checkpoint saved on the way out
 
 
 def test_a_straggler_hung_past_the_chunk_timeout_is_killed_and_replaced(ray_session, monkeypatch):
@@ -307,11 +308,11 @@ def test_a_straggler_hung_past_the_chunk_timeout_is_killed_and_replaced(ray_sess
                                            min_fraction=0.5))
     try:
         theta_ref = ray_session.put(np.zeros(3, np.float32))
-        first = pool.evaluate(theta_ref, 1)
+        first = pool.score_population(theta_ref, 1)
         assert not first.valid[2:4].any()  # chunk 1 is left running, a straggler
         (hung,) = pool._workers
         time.sleep(2 * timeout_s + 0.5)  # past its deadline (it was handed out behind chunk 0: two timeouts)
-        second = pool.evaluate(theta_ref, 2)
+        second = pool.score_population(theta_ref, 2)
         assert hung not in pool._workers and len(pool._workers) == 1  # killed, and a new worker in its slot
         assert second.valid.sum() >= CONFIG.population // 2
         _wait_until_dead(ray_session, hung.actor)
