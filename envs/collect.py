@@ -72,6 +72,7 @@ from envs.base import (
     require_choice,
     require_int,
 )
+from envs.rendering import Header, canvas_with_header
 
 NUM_MOVES = 4
 # (row, column) offsets of the moves; row 0 is the top of the grid.
@@ -244,8 +245,7 @@ def references(initial_states: CollectState, scores: np.ndarray, *, step, horizo
 # ---------------------------------------------------------------- rendering
 
 CELL = 64
-HEADER = 30
-HEADER_FONT_SIZE = 18
+HEADER = Header(height=30, text_origin=(8, 5), font_size=18, text_colour="black")
 WALL_COLOUR = (60, 60, 70)
 FLOOR_COLOUR = (235, 235, 225)
 GRID_COLOUR = (200, 200, 190)
@@ -256,16 +256,13 @@ AGENT_COLOUR = (40, 110, 220)
 
 def render(state: CollectState) -> np.ndarray:
     """The grid (walls dark), coins as yellow circles, the agent as a blue disc, the coins left above."""
-    from PIL import Image, ImageDraw, ImageFont
-
     coins = np.asarray(state.coins)
     size = coins.shape[0]
     walls = border_walls(size)
-    image = Image.new("RGB", (size * CELL, size * CELL + HEADER), "white")
-    draw = ImageDraw.Draw(image)
+    image, draw = canvas_with_header(size * CELL, size * CELL, "white", HEADER, f"coins left {int(coins.sum())}")
     for r in range(size):
         for c in range(size):
-            x, y = c * CELL, HEADER + r * CELL
+            x, y = c * CELL, HEADER.height + r * CELL
             draw.rectangle((x, y, x + CELL - 1, y + CELL - 1), fill=WALL_COLOUR if walls[r, c] else FLOOR_COLOUR,
                            outline=None if walls[r, c] else GRID_COLOUR)
             if coins[r, c]:
@@ -273,7 +270,6 @@ def render(state: CollectState) -> np.ndarray:
                 draw.ellipse((x + pad, y + pad, x + CELL - pad, y + CELL - pad), fill=COIN_COLOUR, outline=COIN_EDGE,
                              width=2)
     r, c = np.asarray(state.agent).tolist()
-    x, y, pad = c * CELL, HEADER + r * CELL, CELL // 8
+    x, y, pad = c * CELL, HEADER.height + r * CELL, CELL // 8
     draw.ellipse((x + pad, y + pad, x + CELL - pad, y + CELL - pad), fill=AGENT_COLOUR)
-    draw.text((8, 5), f"coins left {int(coins.sum())}", fill="black", font=ImageFont.load_default(HEADER_FONT_SIZE))
     return np.asarray(image)

@@ -60,11 +60,15 @@ from envs.base import (
     Environment,
     EnvSpec,
     Observation,
+    fresh_initial_states,
     identity_action_features,
-    play_policy,
+    mean_reference_metrics,
+    random_legal_action,
+    reference_player,
     require_choice,
     require_int,
 )
+from envs.rendering import Header, canvas_with_header, font
 
 NUM_MOVES = 4
 BOARD_SIZE = 4
@@ -147,45 +151,36 @@ def make(horizon: int = 200, tile_encoding: str = "log2") -> Environment:
 # ---------------------------------------------------------------- reference players
 
 
-def random_policy(state: Game2048State, key: jax.Array) -> jax.Array:
-    """Uniform over the valid moves (move 0 when none is valid: the game is over anyway)."""
-    return jax.random.categorical(key, jnp.where(state.game.action_mask, 0.0, -jnp.inf)).astype(jnp.int32)
-
-
 def greedy_policy(state: Game2048State) -> jax.Array:
     """The valid move with the largest immediate merge reward; ties go to the lowest index."""
     rewards = jnp.where(state.game.action_mask, merge_rewards(state.game.board), -1.0)
     return jnp.argmax(rewards).astype(jnp.int32)
 
 
+PLAYER_METRICS = ("score", "highest_tile")  # what a player returns per episode
+
+
 def make_player(env: Environment, greedy: bool):
     """jit(initial states [E], keys [E]) -> (scores, highest tiles): a reference player to the horizon."""
 
-    def one_episode(initial_state: Game2048State, key: jax.Array):
-        def policy(state, _, t):
-            return greedy_policy(state) if greedy else random_policy(state, jax.random.fold_in(key, t))
+    def policy(state: Game2048State, _, key: jax.Array) -> jax.Array:
+        # random: uniform over the valid moves (move 0 when none is valid: the game is over anyway)
+        return greedy_policy(state) if greedy else random_legal_action(state.game.action_mask, key)
 
-        playout = play_policy(env.step, policy, initial_state, env.spec.horizon)
+    def summarise(playout):
         return playout.total_reward, highest_tile(playout.final_state.game.board)
 
-    return jax.jit(jax.vmap(one_episode))
+    return reference_player(env.step, policy, env.spec.horizon, summarise)
 
 
 def references(players: dict, initial_states: Game2048State, scores: np.ndarray) -> dict[str, float]:
     """Random and greedy one-step players on the agent's initial states: mean score and highest tile."""
-    keys = jax.random.split(jax.random.PRNGKey(REFERENCE_SEED), initial_states.game.board.shape[0])
-    out = {}
-    for name, player in players.items():
-        player_scores, tiles = player(initial_states, keys)
-        out[f"{name}_score"] = float(np.mean(np.asarray(player_scores)))
-        out[f"{name}_highest_tile"] = float(np.mean(np.asarray(tiles)))
-    return out
+    return mean_reference_metrics(players, PLAYER_METRICS, initial_states, REFERENCE_SEED)
 
 
 def reference_scores(env: Environment, episodes: int = 1000, seed: int = 0) -> dict[str, float]:
     """The reference figures on ``episodes`` fresh initial states (for the docstring's table)."""
-    initial_states, _ = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(seed), episodes))
-    return env.references(initial_states, np.zeros(episodes))
+    return env.references(fresh_initial_states(env, episodes, seed), np.zeros(episodes))
 
 
 # ---------------------------------------------------------------- rendering
@@ -198,31 +193,28 @@ _TILE_COLOURS = {
 _BIG_TILE_COLOUR = (60, 58, 50)
 _BOARD_COLOUR = (187, 173, 160)
 _DARK_TEXT, _LIGHT_TEXT = (119, 110, 101), (249, 246, 242)
+HEADER = Header(height=44, text_origin=(12, 10), font_size=22, text_colour=_DARK_TEXT)  # x: render's default gap
 
 
 def render(state: Game2048State, tile: int = 120, gap: int = 12) -> np.ndarray:
     """The board like the game: coloured tiles with their numbers, the highest tile above."""
-    from PIL import Image, ImageDraw, ImageFont
-
     board = np.asarray(state.game.board)
     n = board.shape[0]
-    header = 44
     side = n * tile + (n + 1) * gap
-    image = Image.new("RGB", (side, side + header), (250, 248, 239))
-    draw = ImageDraw.Draw(image)
     top = int(2 ** board.max()) if board.max() > 0 else 0
-    draw.text((gap, 10), f"highest tile {top}", fill=_DARK_TEXT, font=ImageFont.load_default(size=22))
-    draw.rounded_rectangle((0, header, side - 1, side + header - 1), radius=8, fill=_BOARD_COLOUR)
+    header = HEADER._replace(text_origin=(gap, HEADER.text_origin[1]))  # the text in line with the first tile
+    image, draw = canvas_with_header(side, side, (250, 248, 239), header, f"highest tile {top}")
+    draw.rounded_rectangle((0, header.height, side - 1, side + header.height - 1), radius=8, fill=_BOARD_COLOUR)
     for row in range(n):
         for col in range(n):
             value = int(2 ** board[row, col]) if board[row, col] > 0 else 0
-            x0, y0 = gap + col * (tile + gap), header + gap + row * (tile + gap)
+            x0, y0 = gap + col * (tile + gap), header.height + gap + row * (tile + gap)
             draw.rounded_rectangle(
                 (x0, y0, x0 + tile, y0 + tile), radius=6, fill=_TILE_COLOURS.get(value, _BIG_TILE_COLOUR)
             )
             if value:
                 text = str(value)
-                font = ImageFont.load_default(size=int(tile * min(0.45, 1.1 / len(text))))
                 colour = _DARK_TEXT if value <= 4 else _LIGHT_TEXT
-                draw.text((x0 + tile / 2, y0 + tile / 2), text, fill=colour, font=font, anchor="mm")
+                draw.text((x0 + tile / 2, y0 + tile / 2), text, fill=colour,
+                          font=font(int(tile * min(0.45, 1.1 / len(text)))), anchor="mm")
     return np.asarray(image)

@@ -74,12 +74,16 @@ from envs.base import (
     Environment,
     EnvSpec,
     Observation,
+    fresh_initial_states,
     identity_action_features,
-    play_policy,
+    mean_reference_metrics,
+    random_legal_action,
+    reference_player,
     require,
     require_bool,
     require_int,
 )
+from envs.rendering import Header, canvas_with_header
 
 NUM_ACTIONS = 5  # Jumanji's: 4 moves and a no-op
 NUM_MOVES = 4
@@ -275,9 +279,7 @@ def make(partial: bool = False, horizon: int = 128, window_size: int | None = No
 # ---------------------------------------------------------------- reference player
 
 
-def random_policy(mask: jax.Array, key: jax.Array) -> jax.Array:
-    """Uniform over the valid moves."""
-    return jax.random.categorical(key, jnp.where(mask, 0.0, -jnp.inf)).astype(jnp.int32)
+PLAYER_METRICS = ("score", "caught", "length")  # what the random player returns per episode
 
 
 def make_random_player(env: Environment):
@@ -287,20 +289,14 @@ def make_random_player(env: Environment):
         state, observation, reward, done = env.step(state, action)
         return state, observation.action_mask, reward, done  # all the player reads of the observation
 
-    def one_episode(initial_state: PacManState, key: jax.Array):
-        def policy(state, mask, t):
-            return random_policy(mask, jax.random.fold_in(key, t))
+    def policy(state: PacManState, mask: jax.Array, key: jax.Array) -> jax.Array:
+        return random_legal_action(mask, key)  # uniform over the valid moves
 
-        playout = play_policy(step, policy, initial_state, env.spec.horizon, action_mask_of(initial_state))
+    def summarise(playout):
         # the state where the episode ended: a catch always ends it, so ``dead`` there says whether it was one
         return playout.total_reward, playout.final_state.game.dead, playout.length
 
-    return jax.jit(jax.vmap(one_episode))
-
-
-def play_random(random_player, initial_states: PacManState):
-    keys = jax.random.split(jax.random.PRNGKey(REFERENCE_SEED), initial_states.game.step_count.shape[0])
-    return random_player(initial_states, keys)
+    return reference_player(step, policy, env.spec.horizon, summarise, action_mask_of)
 
 
 def action_mask_of(state: PacManState) -> jax.Array:
@@ -315,24 +311,19 @@ def action_mask_of(state: PacManState) -> jax.Array:
 
 def references(random_player, initial_states: PacManState, scores: np.ndarray) -> dict[str, float]:
     """The random player's mean score on the agent's initial states."""
-    random_scores, _, _ = play_random(random_player, initial_states)
-    return {"random_score": float(np.mean(np.asarray(random_scores)))}
+    means = mean_reference_metrics({"random": random_player}, PLAYER_METRICS, initial_states, REFERENCE_SEED)
+    return {"random_score": means["random_score"]}
 
 
 def reference_scores(env: Environment, episodes: int = 1000, seed: int = 0) -> dict[str, float]:
     """The reference figures on ``episodes`` fresh initial states (for the docstring's table)."""
-    initial_states, _ = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(seed), episodes))
-    scores, caught, lengths = play_random(make_random_player(env), initial_states)
-    return {
-        "random_score": float(np.mean(np.asarray(scores))),
-        "random_caught": float(np.mean(np.asarray(caught))),
-        "random_length": float(np.mean(np.asarray(lengths))),
-    }
+    players = {"random": make_random_player(env)}
+    return mean_reference_metrics(players, PLAYER_METRICS, fresh_initial_states(env, episodes, seed), REFERENCE_SEED)
 
 
 # ---------------------------------------------------------------- rendering
 
-HEADER_FONT_SIZE = 14
+HEADER = Header(height=22, text_origin=(4, 3), font_size=14, text_colour="white")
 
 
 def render(maze: Maze, window_size: int | None, state: PacManState, cell: int = 12) -> np.ndarray:
@@ -340,27 +331,27 @@ def render(maze: Maze, window_size: int | None, state: PacManState, cell: int = 
 
     Above the maze: the pellets left, and whether the player is caught or the ghosts frightened.
     """
-    from PIL import Image, ImageDraw, ImageFont
-
     game = state.game
     rows, cols = maze.shape
-    header = 22
-    image = Image.new("RGB", (cols * cell, rows * cell + header), "black")
-    draw = ImageDraw.Draw(image)
-    box = lambda r, c, inset=0: (c * cell + inset, header + r * cell + inset,
-                                 (c + 1) * cell - 1 - inset, header + (r + 1) * cell - 1 - inset)
-    for r, c in zip(*np.nonzero(~maze.free)):
-        draw.rectangle(box(r, c), fill=(20, 30, 120))
     pellets = np.zeros(maze.shape, bool)
     locations = np.asarray(game.pellet_locations)
     pellets[locations[:, 1], locations[:, 0]] = True
     pellets[0, 0] = False
+    frightened = int(np.asarray(game.frightened_state_time)) > 0
+    caught = bool(np.asarray(game.dead))
+    status = "caught" if caught else ("frightened" if frightened else "")
+    header_text = f"pellets left {int(pellets.sum())}  {status}"
+    image, draw = canvas_with_header(cols * cell, rows * cell, "black", HEADER, header_text)
+    top = HEADER.height
+    box = lambda r, c, inset=0: (c * cell + inset, top + r * cell + inset,
+                                 (c + 1) * cell - 1 - inset, top + (r + 1) * cell - 1 - inset)
+    for r, c in zip(*np.nonzero(~maze.free)):
+        draw.rectangle(box(r, c), fill=(20, 30, 120))
     for r, c in zip(*np.nonzero(pellets)):
         draw.ellipse(box(r, c, cell // 2 - 2), fill=(255, 200, 170))
     for c, r in np.asarray(game.power_up_locations):
         if (r, c) != (0, 0):
             draw.ellipse(box(r, c, 1), fill=(255, 200, 170))
-    frightened = int(np.asarray(game.frightened_state_time)) > 0
     for (c, r), colour in zip(np.asarray(game.ghost_locations), GHOST_COLOURS):
         x0, y0, x1, y1 = box(r, c, 1)
         fill = (90, 110, 255) if frightened else colour
@@ -368,7 +359,7 @@ def render(maze: Maze, window_size: int | None, state: PacManState, cell: int = 
         draw.rectangle((x0, (y0 + y1) // 2, x1, y1), fill=fill)  # the skirt
     player_r, player_c = int(np.asarray(game.player_locations.x)), int(np.asarray(game.player_locations.y))
     facing = {0: 270, 1: 180, 2: 90, 3: 0}.get(int(np.asarray(game.last_direction)), 0)  # PIL angles, clockwise
-    if bool(np.asarray(game.dead)):  # caught: a small grey player on top of the ghost that caught it
+    if caught:  # a small grey player on top of the ghost that caught it
         draw.ellipse(box(player_r, player_c, 3), fill=(170, 170, 170))
     else:
         draw.pieslice(box(player_r, player_c, 0), facing + 35, facing + 325, fill=(255, 230, 0))
@@ -377,9 +368,6 @@ def render(maze: Maze, window_size: int | None, state: PacManState, cell: int = 
         x0, y0, _, _ = box(player_r - half, player_c - half)
         _, _, x1, y1 = box(player_r + half, player_c + half)
         width, height = image.size  # at the border the window reaches beyond the maze: outline what is on screen
-        draw.rectangle((max(x0, 0), max(y0, header), min(x1, width - 1), min(y1, height - 1)),
+        draw.rectangle((max(x0, 0), max(y0, top), min(x1, width - 1), min(y1, height - 1)),
                        outline=(60, 255, 90), width=2)
-    status = "caught" if bool(np.asarray(game.dead)) else ("frightened" if frightened else "")
-    draw.text((4, 3), f"pellets left {int(pellets.sum())}  {status}", fill="white",
-              font=ImageFont.load_default(HEADER_FONT_SIZE))
     return np.asarray(image)

@@ -66,6 +66,7 @@ from envs.base import (
     require_int,
     require_path,
 )
+from envs.rendering import Header, canvas_with_header
 
 ROOM_SIZE = boxoban.ROOM_SIZE
 MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int32)  # up, down, left, right (row, column)
@@ -253,8 +254,6 @@ def references(initial_states: SokobanState, scores: np.ndarray, *, random_agent
 # ---------------------------------------------------------------- rendering
 
 TILE = 32
-HEADER = 22
-HEADER_FONT_SIZE = 14
 COLOURS = {
     "wall": (92, 64, 51),
     "wall_edge": (60, 40, 32),
@@ -268,20 +267,21 @@ COLOURS = {
     "text": (240, 240, 240),
     "background": (15, 15, 20),
 }
+HEADER = Header(height=22, text_origin=(6, 3), font_size=14, text_colour=COLOURS["text"])
 
 
 def render(state: SokobanState) -> np.ndarray:
     """One unbatched state as an RGB image: walls, floor, goals, boxes (green on a goal), player, goals covered."""
-    from PIL import Image, ImageDraw, ImageFont
-
     walls, goals, boxes = (np.asarray(x, dtype=bool) for x in (state.walls, state.goals, state.boxes))
     player = tuple(np.asarray(state.player).tolist())
+    covered, total = int((boxes & goals).sum()), int(boxes.sum())
+    status = "  solved" if covered == total else ""
     size = ROOM_SIZE * TILE
-    image = Image.new("RGB", (size, size + HEADER), COLOURS["background"])
-    draw = ImageDraw.Draw(image)
+    header_text = f"goals {covered}/{total}{status}  level {int(state.level)}"
+    image, draw = canvas_with_header(size, size, COLOURS["background"], HEADER, header_text)
     for row in range(ROOM_SIZE):
         for col in range(ROOM_SIZE):
-            x, y = col * TILE, HEADER + row * TILE
+            x, y = col * TILE, HEADER.height + row * TILE
             box = (x, y, x + TILE - 1, y + TILE - 1)
             if walls[row, col]:
                 draw.rectangle(box, fill=COLOURS["wall"], outline=COLOURS["wall_edge"], width=2)
@@ -305,10 +305,6 @@ def render(state: SokobanState) -> np.ndarray:
                 inset = 6
                 draw.ellipse((x + inset, y + inset, x + TILE - 1 - inset, y + TILE - 1 - inset),
                              fill=COLOURS["player"])
-    covered, total = int((boxes & goals).sum()), int(boxes.sum())
-    status = "  solved" if covered == total else ""
-    draw.text((6, 3), f"goals {covered}/{total}{status}  level {int(state.level)}", fill=COLOURS["text"],
-              font=ImageFont.load_default(HEADER_FONT_SIZE))
     return np.asarray(image)
 
 

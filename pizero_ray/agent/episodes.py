@@ -1,13 +1,15 @@
-"""Playing whole episodes with an agent's parameters: scores, or every step for a renderer."""
+"""Playing whole episodes with an agent's parameters: scores, or every step for a renderer.
+
+The loop itself is ``envs.base.play``, the one every episode in the project is played by.
+"""
 
 from __future__ import annotations
 
 from typing import Callable, NamedTuple
 
 import jax
-import jax.numpy as jnp
 
-from envs.base import Environment, where_done
+from envs.base import Environment, Step, play
 from pizero_ray.agent.networks import Params
 from pizero_ray.agent.pizero import Agent
 
@@ -29,51 +31,20 @@ class Trajectory(NamedTuple):
 
 
 def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int, record: bool):
+    """(initial states, final states, scores, recorded steps or None): ``envs.base.play`` with the agent."""
     act_key = jax.random.fold_in(key, 1)
     initial_states, observations = jax.vmap(env.reset)(episode_reset_keys(key, num_episodes))
-    memory = agent.initial_memory(num_episodes)
-    done = jnp.zeros((num_episodes,), bool)
-    score = jnp.zeros((num_episodes,), jnp.float32)
 
-    def step(carry, t):
-        states, observations, memory, done, score = carry
-        action, memory, _ = agent.act(params, memory, observations, jax.random.fold_in(act_key, t), env_state=states)
-        stepped, observations, reward, step_done = jax.vmap(env.step)(states, action)
-        # An ended episode keeps its final state, so final-state metrics do not depend on how long the others ran.
-        states = where_done(done, states, stepped)
-        reward = jnp.where(done, 0.0, reward)
-        done = done | step_done
-        out = (states, action, reward, done) if record else None
-        return (states, observations, memory, done, score + reward), out
+    def policy(states, observations, memory, t):
+        return agent.act(params, memory, observations, jax.random.fold_in(act_key, t), env_state=states)
 
-    carry = (initial_states, observations, memory, done, score)
-    if record:
-        carry, recorded = jax.lax.scan(step, carry, jnp.arange(env.spec.horizon))
-    else:
-        carry, recorded = _until_all_done(step, carry, env.spec.horizon), None
-    final_states, score = carry[0], carry[-1]
-    return initial_states, final_states, score, recorded
+    def kept(step: Step):
+        return step.state, step.action, step.reward, step.done
 
-
-def _until_all_done(step, carry, horizon: int):
-    """``step`` for t = 0, 1, ... as ``lax.scan`` over ``arange(horizon)`` would, stopping once every episode
-    has ended (``carry[3]``, ``_play``'s done flags, all True).
-
-    A step after every episode ended adds nothing (rewards are masked, states
-    kept), so the scores are the scan's; games that end long before the
-    horizon (2048, Sokoban when solved) stop paying for it. Under ``vmap`` over
-    the population the loop runs until the last member's episodes end.
-    """
-
-    def unfinished(loop):
-        t, carry = loop
-        return (t < horizon) & ~jnp.all(carry[3])
-
-    def body(loop):
-        t, carry = loop
-        return t + 1, step(carry, t)[0]
-
-    return jax.lax.while_loop(unfinished, body, (jnp.int32(0), carry))[1]
+    playout = play(jax.vmap(env.step), policy, initial_states, observations, env.spec.horizon, (num_episodes,),
+                   policy_carry=agent.initial_memory(num_episodes), record=kept if record else None,
+                   stop_when_all_done=not record)
+    return initial_states, playout.final_state, playout.total_reward, playout.recorded
 
 
 def run_episodes(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:

@@ -19,7 +19,8 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from envs.base import Environment, Observation
+from envs.base import Environment, Observation, Step
+from envs.base import play as env_play
 
 
 class Episodes(NamedTuple):
@@ -33,21 +34,25 @@ class Episodes(NamedTuple):
 
 
 def play(search, params, env: Environment, key: jax.Array, num_episodes: int) -> Episodes:
-    """Plays ``num_episodes`` episodes to the horizon, each step chosen by ``search``; returns them batch-major."""
+    """Plays ``num_episodes`` episodes to the horizon, each step chosen by ``search``; returns them batch-major.
+
+    The loop is ``envs.base.play``: once an episode has ended its state stays
+    where it ended, and the steps after its end (``valid`` False) keep
+    whatever the search chose there.
+    """
     reset_keys = jax.random.split(jax.random.fold_in(key, 0), num_episodes)
     states, observations = jax.vmap(env.reset)(reset_keys)
     search_key = jax.random.fold_in(key, 1)
 
-    def step(carry, t):
-        states, observations, done = carry
+    def policy(states, observations, memory, t):
         out = search(params, observations, states, jax.random.fold_in(search_key, t))
-        states, next_observations, reward, step_done = jax.vmap(env.step)(states, out.action)
-        record = Episodes(observations, out.action.astype(jnp.int32), out.action_weights,
-                          jnp.where(done, 0.0, reward), ~done)
-        return (states, next_observations, done | step_done), record
+        return out.action.astype(jnp.int32), memory, out.action_weights
 
-    carry = (states, observations, jnp.zeros((num_episodes,), bool))
-    _, recorded = jax.lax.scan(step, carry, jnp.arange(env.spec.horizon))
+    def kept(step: Step) -> Episodes:
+        return Episodes(step.observation, step.action, step.extra, step.reward, ~step.ended_before)
+
+    recorded = env_play(jax.vmap(env.step), policy, states, observations, env.spec.horizon, (num_episodes,),
+                        record=kept).recorded
     return jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1), recorded)
 
 

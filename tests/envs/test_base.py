@@ -7,7 +7,19 @@ import numpy as np
 import pytest
 
 import envs
-from envs.base import centred_window, play_policy, require, require_bool, require_choice, require_int, require_path
+from envs.base import (
+    centred_window,
+    fresh_initial_states,
+    mean_reference_metrics,
+    play_policy,
+    random_legal_action,
+    reference_player,
+    require,
+    require_bool,
+    require_choice,
+    require_int,
+    require_path,
+)
 
 # Short episodes where the horizon is a parameter: these tests are about the protocol, not the game.
 SMALL = {"2048": {"horizon": 8}, "pacman": {"horizon": 8}, "pacman-po": {"horizon": 8}, "sokoban": {"num_levels": 20}}
@@ -118,6 +130,58 @@ def test_play_policy_is_jittable_and_vmappable():
     np.testing.assert_array_equal(playouts.total_reward, [1, 11, 111, 1111, 1111])
     np.testing.assert_array_equal(playouts.length, [1, 2, 3, 4, 4])
     np.testing.assert_array_equal(playouts.final_state[0], [1, 2, 3, 4, 4])
+
+
+def test_random_legal_action_draws_only_legal_actions_and_all_of_them():
+    mask = jnp.array([False, True, False, True, True])
+    keys = jax.random.split(jax.random.PRNGKey(0), 300)
+    draws = jax.jit(jax.vmap(random_legal_action, in_axes=(None, 0)))(mask, keys)
+    assert draws.dtype == jnp.int32 and set(np.asarray(draws).tolist()) == {1, 3, 4}
+    assert int(random_legal_action(jnp.array([False, False, True]), jax.random.PRNGKey(5))) == 2
+
+
+def _keyed_reference_player():
+    """On the counting environment: reward = a number drawn from the key ``reference_player`` gives at each step."""
+    def policy(state, observation, key):
+        return jax.random.randint(key, (), 0, 1000)
+
+    return reference_player(_counting_step, policy, horizon=4, summarise=lambda p: (p.total_reward, p.length))
+
+
+def test_reference_player_gives_the_policy_a_key_per_step_folded_from_the_episode_key():
+    keys = jax.random.split(jax.random.PRNGKey(3), 2)
+    rewards, lengths = _keyed_reference_player()((jnp.zeros(2, jnp.int32), jnp.array([2, 9])), keys)
+    expected = [sum(int(jax.random.randint(jax.random.fold_in(key, t), (), 0, 1000)) for t in range(steps))
+                for key, steps in zip(keys, (2, 4))]
+    np.testing.assert_array_equal(rewards, expected)
+    np.testing.assert_array_equal(lengths, [2, 4])
+
+
+def test_reference_player_passes_the_observation_from_the_initial_state():
+    def policy(state, observation, key):
+        return observation  # 100 * steps taken, and 5 before the first
+
+    player = reference_player(_counting_step, policy, 3, lambda p: (p.total_reward,), lambda state: state[0] + 5)
+    (rewards,) = player((jnp.zeros(1, jnp.int32), jnp.array([9])), jax.random.split(jax.random.PRNGKey(0), 1))
+    assert float(rewards[0]) == 5 + 100 + 200
+
+
+def test_mean_reference_metrics_names_player_and_metric_and_gives_every_player_the_same_keys():
+    player = _keyed_reference_player()
+    states = (jnp.zeros(3, jnp.int32), jnp.array([1, 3, 9]))
+    means = mean_reference_metrics({"a": player, "b": player}, ("score", "length"), states, seed=11)
+    assert list(means) == ["a_score", "a_length", "b_score", "b_length"]
+    rewards, lengths = player(states, jax.random.split(jax.random.PRNGKey(11), 3))
+    assert means["a_score"] == means["b_score"] == float(np.mean(np.asarray(rewards)))
+    assert means["a_length"] == means["b_length"] == (1 + 3 + 4) / 3
+    assert all(type(value) is float for value in means.values())
+
+
+def test_fresh_initial_states_are_the_batched_resets_of_keys_split_from_the_seed():
+    env = envs.make("collect")
+    states = fresh_initial_states(env, 3, seed=4)
+    one, _ = env.reset(jax.random.split(jax.random.PRNGKey(4), 3)[2])
+    np.testing.assert_array_equal(states.coins[2], one.coins)
 
 
 # ---------------------------------------------------------------- checking parameters

@@ -142,7 +142,7 @@ def test_no_exact_optimum_for_many_coins():
 def test_render_draws_walls_coins_and_agent(env):
     state = _state((2, 3), [(5, 4)], t=7)
     image = env.render(state)
-    cell, header = collect.CELL, collect.HEADER
+    cell, header = collect.CELL, collect.HEADER.height
     assert image.shape == (8 * cell + header, 8 * cell, 3) and image.dtype == np.uint8
     centre = lambda r, c: tuple(image[header + r * cell + cell // 2, c * cell + cell // 2])
     assert centre(0, 0) == collect.WALL_COLOUR

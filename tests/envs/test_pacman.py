@@ -5,6 +5,7 @@ import pytest
 
 import envs
 from envs import pacman
+from envs.base import random_legal_action
 
 UP, LEFT, DOWN, RIGHT, NO_OP = range(5)  # in the maze as printed (Jumanji's docs swap the names of 1 and 3)
 START = (23, 13)  # the player's (row, col) at reset
@@ -90,14 +91,14 @@ def test_action_mask_matches_jumanji_along_an_episode(full_env, full_step):
     state, obs = full_env.reset(jax.random.PRNGKey(1))
     for t in range(12):
         np.testing.assert_array_equal(obs.action_mask, pacman.action_mask_of(state))
-        state, obs, _, _ = full_step(state, pacman.random_policy(obs.action_mask, jax.random.PRNGKey(t)))
+        state, obs, _, _ = full_step(state, random_legal_action(obs.action_mask, jax.random.PRNGKey(t)))
 
 
 def test_score_is_the_sum_of_rewards_and_a_ghost_ends_the_episode(full_env, full_step):
     state, obs = full_env.reset(jax.random.PRNGKey(2))
     total = 0.0
     for t in range(full_env.spec.horizon):
-        state, obs, reward, done = full_step(state, pacman.random_policy(obs.action_mask, jax.random.PRNGKey(t)))
+        state, obs, reward, done = full_step(state, random_legal_action(obs.action_mask, jax.random.PRNGKey(t)))
         total += float(reward)
         if bool(done):
             break
