@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 import mctx
 
-from pizero_ray.agent import networks
+from pizero_ray.agent import mcts, networks
 from pizero_ray.config import Config
 
 
@@ -81,17 +81,13 @@ def make_planner(config: Config) -> Planner:
             stochastic_muzero_search, num_actions=k, num_outcomes=config.chance_outcomes,
             num_simulations=config.num_simulations, dirichlet_fraction=config.root_noise,
             pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base, discount=discount)
-    if config.planner == "muzero" and config.root_noise == 0:
-        return functools.partial(
-            muzero_search_without_root_noise, num_actions=k, num_simulations=config.num_simulations,
-            pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base, discount=discount)
-    if config.planner == "muzero":
-        return functools.partial(
-            muzero_search, num_actions=k, num_simulations=config.num_simulations,
-            dirichlet_fraction=config.root_noise, pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base,
-            discount=discount)
-    return functools.partial(gumbel_search, num_actions=k, num_simulations=config.num_simulations,
-                             gumbel_scale=config.root_noise, discount=discount)
+    # PiZero acts on the most visited abstract action (first index on ties), drawing nothing for it. mctx's
+    # search still breaks ties between children with a tiny uniform draw from the key (muzero_action_selection):
+    # with no root noise the agent is a deterministic function of (parameters, key).
+    policy = mcts.make_policy(config.planner, config.num_simulations, config.root_noise,
+                              pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base, most_visited=True,
+                              max_considered_actions=k)
+    return functools.partial(search, policy=policy, recurrent_fn=_recurrent_fn(k, discount))
 
 
 def no_search(params: networks.Params, latent: jax.Array, key: jax.Array, *, num_actions: int) -> PlanResult:
@@ -118,56 +114,10 @@ def _recurrent_fn(num_actions: int, discount: float):
     return recurrent_fn
 
 
-def muzero_search(params, latent, key, *, num_actions: int, num_simulations: int, dirichlet_fraction: float,
-                  pb_c_init: float, pb_c_base: float, discount: float) -> PlanResult:
-    """mctx's MuZero (PUCT) policy with Dirichlet root noise."""
-    output = mctx.muzero_policy(
-        params, key, _root(params, latent), _recurrent_fn(num_actions, discount), num_simulations,
-        dirichlet_fraction=dirichlet_fraction, pb_c_init=pb_c_init, pb_c_base=pb_c_base,
-    )
-    # mctx samples its action from the visit counts; PiZero acts on the
-    # most visited abstract action (first index on ties) so that, with no
-    # root noise, the agent is a deterministic function of its parameters.
-    abstract_action = jnp.argmax(output.action_weights, axis=-1)
-    root_value = output.search_tree.summary().value
-    return PlanResult(abstract_action.astype(jnp.int32), output.action_weights, root_value)
-
-
-def muzero_search_without_root_noise(params, latent, key, *, num_actions: int, num_simulations: int,
-                                     pb_c_init: float, pb_c_base: float, discount: float) -> PlanResult:
-    """Exactly ``mctx.muzero_policy``'s tree with a Dirichlet fraction of 0, without sampling the noise.
-
-    muzero_policy draws Dirichlet noise (gamma rejection sampling) even when it
-    weighs it by 0; at our batch sizes that costs about 5% of a rollout. Same
-    key split and the same prior logits (log of the softmax), so the same tree.
-    """
-    root = _root(params, latent)
-    _, _, search_key = jax.random.split(key, 3)
-    prior_logits = jnp.log(jnp.maximum(jax.nn.softmax(root.prior_logits), jnp.finfo(root.prior_logits.dtype).tiny))
-    selection = functools.partial(
-        mctx.muzero_action_selection, pb_c_init=pb_c_init, pb_c_base=pb_c_base,
-        qtransform=mctx.qtransform_by_parent_and_siblings,
-    )
-    tree = mctx.search(
-        params=params, rng_key=search_key, root=root.replace(prior_logits=prior_logits),
-        recurrent_fn=_recurrent_fn(num_actions, discount),
-        root_action_selection_fn=functools.partial(selection, depth=0), interior_action_selection_fn=selection,
-        num_simulations=num_simulations,
-    )
-    summary = tree.summary()
-    abstract_action = jnp.argmax(summary.visit_probs, axis=-1).astype(jnp.int32)
-    return PlanResult(abstract_action, summary.visit_probs, summary.value)
-
-
-def gumbel_search(params, latent, key, *, num_actions: int, num_simulations: int, gumbel_scale: float,
-                  discount: float) -> PlanResult:
-    """mctx's Gumbel MuZero policy, considering every abstract action."""
-    output = mctx.gumbel_muzero_policy(
-        params, key, _root(params, latent), _recurrent_fn(num_actions, discount), num_simulations,
-        max_num_considered_actions=num_actions, gumbel_scale=gumbel_scale,
-    )
-    root_value = output.search_tree.summary().value
-    return PlanResult(output.action.astype(jnp.int32), output.action_weights, root_value)
+def search(params, latent, key, *, policy: mcts.SearchPolicy, recurrent_fn) -> PlanResult:
+    """MCTS over the abstract model with ``policy`` (mctx's MuZero or Gumbel MuZero, bound by ``mcts``)."""
+    output = policy(params, key, _root(params, latent), recurrent_fn)
+    return PlanResult(output.action.astype(jnp.int32), output.action_weights, output.search_tree.summary().value)
 
 
 def stochastic_muzero_search(params, latent, key, *, num_actions: int, num_outcomes: int, num_simulations: int,

@@ -34,6 +34,7 @@ import jax.numpy as jnp
 import mctx
 
 from envs.base import Environment, Observation, where_done
+from pizero_ray.agent import mcts
 from pizero_ray.baselines.networks import Model, PolicyValue, inverse_value_transform
 from pizero_ray.config import Config
 
@@ -104,15 +105,10 @@ Search = Callable[[object, Observation, object, jax.Array], mctx.PolicyOutput]
 
 
 def make_search(config: Config, root_fn, recurrent_fn, training: bool) -> Search:
-    """The configured mctx search over ``recurrent_fn``, its hyperparameters bound."""
-    if config.planner == "gumbel":
-        policy = functools.partial(mctx.gumbel_muzero_policy, num_simulations=config.num_simulations,
-                                   gumbel_scale=config.root_noise if training else 0.0)
-    else:
-        policy = functools.partial(mctx.muzero_policy, num_simulations=config.num_simulations,
-                                   dirichlet_fraction=config.root_noise if training else 0.0,
-                                   temperature=1.0 if training else 0.0,
-                                   pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base)
+    """The configured mctx search over ``recurrent_fn``, its hyperparameters bound (``agent.mcts``)."""
+    policy = mcts.make_policy(config.planner, config.num_simulations, config.root_noise if training else 0.0,
+                              pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base,
+                              temperature=1.0 if training else 0.0)
 
     def search(params, observation: Observation, state, key: jax.Array) -> mctx.PolicyOutput:
         root = root_fn(params, observation, state)
