@@ -4,6 +4,7 @@ import json
 
 import pytest
 
+from tests.figures import assert_curves_drawn
 from tests.scripts_loading import load_script
 
 
@@ -31,7 +32,8 @@ def test_summary_curve_reads_the_rows_a_run_dir_would_give(script, summary):
 def test_main_draws_one_png_from_two_runs(script, summary, tmp_path):
     out = tmp_path / "figure" / "curves.png"
     assert script.main(["--out", str(out), "--title", "t", f"a={summary}:none", f"b={summary}:pizero"]) == 0
-    assert out.read_bytes().startswith(b"\x89PNG")
+    # 11 x 4 inches at 110 dpi; both panels (score against iteration, against minutes) draw both runs' lines
+    assert_curves_drawn(out, size=(1210, 440), panels=[("C0", "C1")] * 2)
 
 
 def test_a_missing_run_is_named(script, summary, tmp_path):

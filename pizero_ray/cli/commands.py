@@ -391,9 +391,13 @@ def _run_training(run_path: Path, config, options, no_progress: bool) -> int:
 
     on_start, on_iteration, close = _progress_callbacks(options, no_progress)
     try:
-        result = driver.train(run_path, config, options, on_iteration=on_iteration, on_start=on_start)
-    finally:
-        close()
+        try:
+            result = driver.train(run_path, config, options, on_iteration=on_iteration, on_start=on_start)
+        finally:
+            close()
+    except driver.TrainingError as error:  # one line; the run's last checkpoint stands
+        print(f"pizero: error: {error}", file=sys.stderr)
+        return 1
     print(json.dumps({"run_dir": str(run_path), **result}))
     target = " ".join(f"--{name} {value:g}" for name, value in
                       (("iterations", options.iterations), ("minutes", options.minutes)) if value is not None)

@@ -2,9 +2,11 @@
 
 The pseudo-gradient
     g = sum_i w_i z_i / (2 sigma n),   w_i = shaped(score_i+) - shaped(score_i-)
-is a sum of per-chunk parts (``GradientParts``), added in chunk order: the
-worker that evaluated a chunk computes its part from the noise it kept, the
-driver regenerates the noise of any other (one chunk in memory at a time).
+is a sum of per-chunk parts (``GradientParts``), added in chunk order: where
+parts are formed on the workers (``--gradient-on``), the worker that evaluated
+a chunk computes its part from the noise it kept; the driver regenerates the
+noise of any other chunk, or of every chunk when it forms them all (one chunk
+in memory at a time).
 Then Adam takes an ascent step. The state (``ESState``: flat parameters,
 optax state, iteration) is explicit; the strategy's functions are bound to the
 config once.
@@ -12,6 +14,7 @@ config once.
 
 from __future__ import annotations
 
+import functools
 from typing import Callable, NamedTuple
 
 import jax
@@ -110,6 +113,7 @@ class UpdateStats(NamedTuple):
     max_score: float
     min_score: float
     pairs: int  # pairs whose scores came in
+    non_finite_scores: int  # members among them whose score was NaN or infinite (they rank last: es.shaping)
     gradient_norm: float
     update_norm: float
     parameter_norm: float
@@ -142,9 +146,7 @@ def make_strategy(config: Config, perturbation: Perturbation) -> Strategy:
     def ask(state: ESState) -> int:
         return iteration_seed(config.seed, state.iteration)
 
-    @jax.jit
-    def shaped(scores, valid):
-        return pair_weights(scores, config.fitness_shaping, valid), jnp.maximum(jnp.sum(valid), 1)
+    shaped = jax.jit(functools.partial(pair_weights, fitness_shaping=config.fitness_shaping))
 
     @jax.jit
     def step(theta, opt_state, parts_total, num_pairs):
@@ -154,7 +156,7 @@ def make_strategy(config: Config, perturbation: Perturbation) -> Strategy:
         return new_theta, opt_state, (jnp.linalg.norm(g), jnp.linalg.norm(updates), jnp.linalg.norm(new_theta))
 
     def weights(scores, valid) -> np.ndarray:
-        return np.asarray(shaped(jnp.asarray(scores), jnp.asarray(valid))[0])
+        return np.asarray(shaped(jnp.asarray(scores), valid=jnp.asarray(valid)))
 
     def tell(state: ESState, scores, valid, chunk_parts) -> tuple[ESState, UpdateStats]:
         """The Adam step on sum(parts) / (2 sigma n), n the pairs that came in; ``chunk_parts`` in chunk order."""
@@ -162,8 +164,10 @@ def make_strategy(config: Config, perturbation: Perturbation) -> Strategy:
         num_pairs = jnp.maximum(jnp.sum(jnp.asarray(valid)), 1)
         theta, opt_state, norms = step(state.theta, state.opt_state, GradientParts.total(chunk_parts), num_pairs)
         came_in = np.asarray(scores)[valid]
-        stats = UpdateStats(float(came_in.mean()), float(came_in.std()), float(came_in.max()), float(came_in.min()),
-                            int(valid.sum()), *(float(norm) for norm in norms))
+        finite = came_in[np.isfinite(came_in)]  # the broken ones are counted, not averaged (es.shaping)
+        summary = finite if finite.size else np.full(1, np.nan, np.float32)
+        stats = UpdateStats(float(summary.mean()), float(summary.std()), float(summary.max()), float(summary.min()),
+                            int(valid.sum()), int(came_in.size - finite.size), *(float(norm) for norm in norms))
         return ESState(theta, opt_state, state.iteration + 1), stats
 
     return Strategy(init, ask, weights, tell, parts)

@@ -15,6 +15,7 @@ SIGINT.
 from __future__ import annotations
 
 import functools
+import logging
 import math
 import signal
 import threading
@@ -33,6 +34,7 @@ from pizero_ray.trainer.options import RunOptions
 from pizero_ray.trainer.pool import Interrupted, TrainingError, WorkerPool
 
 EVAL_SEED = 2_000_003  # fixed held-out episodes for the learning curve
+_log = logging.getLogger(__name__)
 
 __all__ = ["RunOptions", "TrainingError", "train"]
 
@@ -135,8 +137,13 @@ class _Run:
         started = time.time()
         state, stats = self.method.iterate(self.state)
         state.theta.block_until_ready()
-        self.state = state
         losses = {"loss": stats.loss, **stats.parts}
+        broken = [name for name, value in (("the self-play score", stats.mean_score), *losses.items())
+                  if not np.isfinite(float(value))]
+        if broken:  # a NaN reward or loss would be in the parameters from now on: stop before keeping them
+            raise TrainingError(f"iteration {state.iteration}: {', '.join(broken)} is not finite "
+                                f"(mean self-play score {float(stats.mean_score)}); check the environment's rewards")
+        self.state = state
         return {"iteration": state.iteration, "mean_score": float(stats.mean_score),
                 "std_score": float(stats.std_score), "max_score": float(stats.max_score),
                 "min_score": float(stats.min_score), **{name: float(value) for name, value in losses.items()},
@@ -150,6 +157,7 @@ class _Run:
         seed = self.method.ask(self.state)
         theta_ref = ray.put(np.asarray(self.state.theta))  # once per iteration; each node fetches it once
         result = self.pool.score_population(theta_ref, seed, self.state.iteration, should_stop=stop)
+        _check_scores(result.scores, result.valid, self.state.iteration + 1)
         scored = time.time()
         weights = self.method.weights(result.scores, result.valid)
         parts, parts_here = self.pool.gradient_parts(
@@ -164,7 +172,7 @@ class _Run:
                "update_time_s": now - scored, "wall_time_s": self.wall_time_s(),
                "gradient_norm": stats.gradient_norm, "update_norm": stats.update_norm,
                "parameter_norm": stats.parameter_norm, "workers": self.pool.live_workers,
-               "worker_nodes": [node[:12] for node in result.worker_nodes]}
+               "worker_nodes": [node[:12] for node in result.worker_nodes], **result.traffic.metrics()}
         if result.new_worker_first_result_s:
             row["new_worker_first_result_s"] = [round(s, 3) for s in result.new_worker_first_result_s]
         return row
@@ -209,7 +217,23 @@ def _next_multiple(seconds: float, every_minutes: float | None) -> float:
 
 def _score_stats(stats) -> dict:
     return {"mean_score": stats.mean_score, "std_score": stats.std_score, "max_score": stats.max_score,
-            "min_score": stats.min_score, "pairs_evaluated": stats.pairs}
+            "min_score": stats.min_score, "pairs_evaluated": stats.pairs, "non_finite_scores": stats.non_finite_scores}
+
+
+def _check_scores(scores: np.ndarray, valid: np.ndarray, iteration: int) -> None:
+    """Warns, one line, of members whose score is NaN or infinite (they rank last: es.shaping); raises
+    TrainingError when no member's is finite: nothing is left to learn from, and the environment or the agent
+    is broken."""
+    broken = np.argwhere(~np.isfinite(scores) & valid[:, None])
+    if broken.size == 0:
+        return
+    pair, member = (int(i) for i in broken[0])
+    first = f"pair {pair}'s {'+' if member == 0 else '-'}sigma member scored {scores[pair, member]}"
+    if len(broken) == 2 * int(valid.sum()):
+        raise TrainingError(f"iteration {iteration}: no member scored a finite score ({first}); check the "
+                            "environment's rewards")
+    _log.warning("pizero: warning: iteration %d: %d member(s) scored NaN or infinity and rank last (%s)",
+                 iteration, len(broken), first)
 
 
 def train(

@@ -166,13 +166,14 @@ class ChunkScorer:
 
     ``score`` may be called from several threads at once (a threaded Ray
     actor): each call borrows a free device for the chunk's duration, and
-    keeps the chunk's noise for ``gradient_part``. The noise is made on the
+    keeps the chunk's noise for ``gradient_part`` (unless ``keep_noise`` is
+    False: where the driver forms every part, nobody asks). The noise is made on the
     device by ``es.GradientParts.noise``, the function that regenerates it
     anywhere else, compiled for each device as the rollout is; the rollout
     takes it as an input.
     """
 
-    def __init__(self, config: Config, max_devices: int | None = None):
+    def __init__(self, config: Config, max_devices: int | None = None, keep_noise: bool = True):
         import jax
         import jax.numpy as jnp
         from jax.sharding import SingleDeviceSharding
@@ -189,7 +190,8 @@ class ChunkScorer:
         self.devices = jax.local_devices()[:max_devices]
         pair_scores = population.make_pair_scorer(config, env, layout)
         self._parts = es.gradient_parts(config, layout.perturbation)
-        self._kept = NoiseCache(config.chunk_size * layout.perturbation.noise_size * 4)
+        chunk_noise_bytes = config.chunk_size * layout.perturbation.noise_size * 4
+        self._kept = NoiseCache(chunk_noise_bytes, max_bytes=None if keep_noise else 0)  # 0: keeps nothing
 
         def compile_for(device):
             on = SingleDeviceSharding(device)

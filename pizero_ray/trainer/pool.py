@@ -12,6 +12,7 @@ least every ``POLL_S``.
 from __future__ import annotations
 
 import math
+import pickle
 import time
 from collections import deque
 from dataclasses import dataclass, field
@@ -46,6 +47,50 @@ class _Worker:
     first_result_s: float | None = None  # actor creation to its first chunk result
 
 
+def serialized_bytes(obj) -> int:
+    """The bytes of ``obj`` as Ray ships it: pickle protocol 5, arrays as out-of-band buffers (counted, not copied).
+
+    Ray serialises task arguments, returns and ``ray.put`` objects this way and
+    adds a little metadata of its own, which this leaves out (about 100 bytes
+    per object: the bench agent's parameters measured 217,359 bytes through
+    Ray's serialiser, 217,253 here).
+    """
+    buffers: list[pickle.PickleBuffer] = []
+    header = pickle.dumps(obj, protocol=5, buffer_callback=buffers.append)
+    return len(header) + sum(buffer.raw().nbytes for buffer in buffers)
+
+
+def call_bytes(*args) -> int:
+    """A remote call's arguments: each value serialised, each object reference as its id.
+
+    A task carries a reference's id, not the object: the object itself moves
+    once per node, and is counted there (``_ChunkQueue.dispatch``).
+    """
+    import ray
+
+    return sum(len(arg.binary()) if isinstance(arg, ray.ObjectRef) else serialized_bytes(arg) for arg in args)
+
+
+@dataclass
+class Traffic:
+    """Bytes one iteration moved between the driver and its workers, counted object by object as they go.
+
+    Out: the parameters once per worker node that was handed a chunk (Ray
+    fetches an object once per node; on the driver's own node that is a read of
+    the shared-memory store), each chunk's call (seed, first pair, a reference),
+    and, where parts are asked of workers, each chunk's weights. Back: each
+    chunk's scores and each gradient part a worker returned. Objects are
+    measured by ``serialized_bytes``. Not counted: Ray's task and control
+    messages, and the results of stragglers ``min_fraction`` dropped.
+    """
+
+    to_workers: int = 0
+    from_workers: int = 0
+
+    def metrics(self) -> dict:
+        return {"bytes_to_workers": self.to_workers, "bytes_from_workers": self.from_workers}
+
+
 @dataclass
 class IterationResult:
     scores: np.ndarray  # [population, 2]; rows of dropped chunks are zero
@@ -54,6 +99,8 @@ class IterationResult:
     new_worker_first_result_s: list[float]
     worker_nodes: list[str]  # Ray node ids of the workers that returned chunks
     owners: dict = field(default_factory=dict)  # chunk index -> the worker that evaluated it (it kept the noise)
+    # The iteration's bytes each way; the pool's gradient_parts adds its round trip to this same object.
+    traffic: Traffic = field(default_factory=Traffic)
 
 
 class WorkerPool:
@@ -67,6 +114,7 @@ class WorkerPool:
         self._last_ready_time = time.time()
         self.kills = 0
         self._kills_done: set[tuple[int, int]] = set()
+        self._traffic = Traffic()  # the current iteration's bytes (score_population starts a new count)
         self.top_up()
 
     # ------------------------------------------------------------------ workers
@@ -96,6 +144,7 @@ class WorkerPool:
             actor = workers.start_worker(
                 self._config_json, self._options.cpus_per_worker, self._options.gpus_per_worker,
                 self._options.compile_cache, dict(self._options.worker_resources), self._options.pin_cores,
+                keep_noise=not self._options.gradient_on_driver(self._config.perturbation_rank),
             )
             self._workers.append(_Worker(actor, time.time(), ready_ref=actor.ready.remote()))
 
@@ -151,7 +200,8 @@ class WorkerPool:
         """Scores of every chunk of the population (or ``min_fraction`` of them) at ``theta_ref``."""
         import ray
 
-        queue = _ChunkQueue(self, theta_ref, seed, iteration)
+        self._traffic = Traffic()
+        queue = _ChunkQueue(self, theta_ref, seed, iteration, self._traffic)
         while not queue.enough():
             if should_stop():
                 raise Interrupted()
@@ -232,6 +282,7 @@ class WorkerPool:
             chunk_weights = weights[index * chunk:(index + 1) * chunk]
             if worker is not None and worker in self._workers and chunk_weights.any():
                 asked[worker.actor.gradient_part.remote(seed, index * chunk, chunk_weights)] = index, worker
+                self._traffic.to_workers += call_bytes(seed, index * chunk, chunk_weights)
         return asked
 
     def _collect_parts(self, asked: dict, should_stop: Callable[[], bool]) -> dict[int, np.ndarray]:
@@ -253,6 +304,7 @@ class WorkerPool:
                 index, worker = waiting.pop(ref)
                 try:
                     parts[index] = ray.get(ref, timeout=POLL_S)
+                    self._traffic.from_workers += serialized_bytes(parts[index])
                 except RayTaskError as error:
                     raise TrainingError(f"a worker failed computing chunk {index}'s gradient part: {error}") from None
                 except GetTimeoutError:
@@ -265,8 +317,11 @@ class WorkerPool:
 class _ChunkQueue:
     """One iteration's chunks: the queue, what is in flight where and until when, and what came back."""
 
-    def __init__(self, pool: WorkerPool, theta_ref, seed: int, iteration: int):
+    def __init__(self, pool: WorkerPool, theta_ref, seed: int, iteration: int, traffic: Traffic):
         self.pool, self.theta_ref, self.seed, self.iteration = pool, theta_ref, seed, iteration
+        self.traffic = traffic
+        self.theta_nodes: set[str] = set()  # nodes handed a chunk this iteration: each fetched the parameters once
+        self._theta_bytes: int | None = None
         config, options = pool._config, pool._options
         self.chunk, self.num_chunks = config.chunk_size, config.num_chunks
         self.needed = self.num_chunks if options.min_fraction >= 1 else max(
@@ -291,6 +346,7 @@ class _ChunkQueue:
             while worker.ready and self.pending and worker.in_flight < options.in_flight_per_worker * devices:
                 index = self.pending.popleft()
                 ref = worker.actor.score_chunk.remote(self.theta_ref, self.seed, index * self.chunk)
+                self._count_dispatch(worker, index)
                 # The deadline allows for the chunks queued ahead of this one on the worker.
                 deadline = time.time() + options.chunk_timeout_s * (worker.in_flight // devices + 1)
                 self.in_flight[ref] = (index, worker, deadline)
@@ -298,6 +354,18 @@ class _ChunkQueue:
                 if (self.iteration, index) in options.kill_schedule - self.pool._kills_done:
                     self.pool._kills_done.add((self.iteration, index))
                     self.pool.kill_process(worker)
+
+    def _count_dispatch(self, worker: _Worker, index: int) -> None:
+        """The bytes a chunk sends out: its call, and the parameters if its worker's node has not fetched them yet."""
+        self.traffic.to_workers += call_bytes(self.theta_ref, self.seed, index * self.chunk)
+        node = worker.info.get("node_id", "?")
+        if node not in self.theta_nodes:
+            import ray
+
+            if self._theta_bytes is None:  # the driver's own object: ray.get maps it, copying nothing
+                self._theta_bytes = serialized_bytes(ray.get(self.theta_ref))
+            self.theta_nodes.add(node)
+            self.traffic.to_workers += self._theta_bytes
 
     def collect(self, ref) -> None:
         """A chunk's result is in: its scores, or its worker died and the chunk goes back on the queue."""
@@ -313,6 +381,7 @@ class _ChunkQueue:
         except (RayError, GetTimeoutError):
             self._fail(index, worker, kill=False)  # the worker died (or its node did): the chunk runs elsewhere
             return
+        self.traffic.from_workers += serialized_bytes(self.results[index])
         self.owners[index] = worker
         self.nodes.add(worker.info.get("node_id", "?"))
         if worker.first_result_s is None:
@@ -346,4 +415,5 @@ class _ChunkQueue:
         for index, chunk_scores in self.results.items():
             scores[index * self.chunk:(index + 1) * self.chunk] = chunk_scores
             valid[index * self.chunk:(index + 1) * self.chunk] = True
-        return IterationResult(scores, valid, self.requeued, self.first_results, sorted(self.nodes), self.owners)
+        return IterationResult(scores, valid, self.requeued, self.first_results, sorted(self.nodes), self.owners,
+                               self.traffic)

@@ -25,7 +25,7 @@ class RolloutWorker:
     """Evaluates chunks of antithetic pairs; returns their scores [C, 2] as float32."""
 
     def __init__(self, config_json: str, compile_cache_dir: str | None, cpu_devices: int = 1, pin_cores: bool = False,
-                 cpu_only: bool = False):
+                 cpu_only: bool = False, keep_noise: bool = True):
         started = time.time()
         from pizero_ray.trainer import compile_cache
 
@@ -37,7 +37,7 @@ class RolloutWorker:
         from pizero_ray.config import Config
 
         self.config = Config.from_json(config_json)
-        self._chunks = local_devices.ChunkScorer(self.config)
+        self._chunks = local_devices.ChunkScorer(self.config, keep_noise=keep_noise)
         self._info = {
             "pid": os.getpid(),
             "node_id": ray.get_runtime_context().get_node_id(),
@@ -64,9 +64,13 @@ class RolloutWorker:
 
 def start_worker(
     config_json: str, num_cpus: float, num_gpus: float, compile_cache_dir: str | None, resources: dict | None = None,
-    pin_cores: bool = True,
+    pin_cores: bool = True, keep_noise: bool = True,
 ):
     """A worker actor; a CPU worker pins itself to cores of its own if it can (``local_devices.CoreClaim``).
+
+    ``keep_noise``: the worker keeps each chunk's noise for the chunk's gradient
+    part; False where the driver forms every part (``--gradient-on`` resolved
+    to the driver) and no worker is ever asked for one.
 
     A CPU worker sets its JAX platform itself, in ``__init__``: an actor without
     a ``runtime_env`` can start in one of Ray's pre-started worker processes,
@@ -80,8 +84,8 @@ def start_worker(
         num_cpus=num_cpus, num_gpus=num_gpus, resources=resources or {}, max_concurrency=devices,  # a chunk per device
         runtime_env=_gpu_env(num_gpus))
     if num_gpus > 0:
-        return actor.remote(config_json, compile_cache_dir)
-    return actor.remote(config_json, compile_cache_dir, devices, pin_cores, cpu_only=True)
+        return actor.remote(config_json, compile_cache_dir, keep_noise=keep_noise)
+    return actor.remote(config_json, compile_cache_dir, devices, pin_cores, cpu_only=True, keep_noise=keep_noise)
 
 
 def _gpu_env(num_gpus: float) -> dict | None:

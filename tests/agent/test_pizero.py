@@ -34,13 +34,38 @@ def test_act_shapes_and_legal_actions(tiny_config, tsp_env, tiny_agent, act):
     assert info.plan.visit_probs.shape == (5, tiny_config.num_abstract_actions)
 
 
-def test_act_is_deterministic_given_a_key(tsp_env, tiny_agent, act):
-    params = tiny_agent.init(jax.random.PRNGKey(0))
-    _, obs = _observations(tsp_env, 5)
-    first = act(params, tiny_agent.initial_memory(5), obs, jax.random.PRNGKey(3))
-    second = act(params, tiny_agent.initial_memory(5), obs, jax.random.PRNGKey(3))
-    for a, b in zip(jax.tree_util.tree_leaves(first), jax.tree_util.tree_leaves(second)):
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+def _act_with_keys(config, env, seeds, batch=16):
+    """What the agent does on the same observations, memory and parameters with each key in turn."""
+    agent = make_agent(config, env.spec)
+    params = agent.init(jax.random.PRNGKey(0))
+    _, obs = _observations(env, batch)
+    act = jax.jit(agent.act)
+    return [jax.tree_util.tree_map(np.asarray, act(params, agent.initial_memory(batch), obs, jax.random.PRNGKey(s)))
+            for s in seeds]
+
+
+def _same(first, second) -> bool:
+    leaves = zip(jax.tree_util.tree_leaves(first), jax.tree_util.tree_leaves(second))
+    return all(np.array_equal(a, b) for a, b in leaves)
+
+
+def test_the_key_does_not_move_an_agent_that_neither_searches_nor_samples(tsp_env):
+    first, second = _act_with_keys(build_config("tiny", planner="none"), tsp_env, [1, 2])
+    assert _same(first, second)
+
+
+def test_root_noise_is_drawn_from_the_key(tsp_env):
+    """With Dirichlet noise at the root the search's visits follow the key (and only the key)."""
+    first, again, other = _act_with_keys(build_config("tiny", root_noise=0.5), tsp_env, [1, 1, 2])
+    assert _same(first, again)
+    assert not np.array_equal(first[2].plan.visit_probs, other[2].plan.visit_probs)
+
+
+def test_sampled_actions_are_drawn_from_the_key(tsp_env):
+    config = build_config("tiny", planner="none", action_selection="sample", action_noise=1.0)
+    first, again, other = _act_with_keys(config, tsp_env, [1, 1, 2])
+    assert _same(first, again)
+    assert not np.array_equal(first[0], other[0])  # some of the 16 episodes take another city
 
 
 def test_no_planner_has_no_abstract_model_and_acts(tsp_env):

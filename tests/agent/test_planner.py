@@ -62,7 +62,7 @@ def test_no_planner_has_no_abstract_model():
     assert result.visit_probs.shape == (2, config.num_abstract_actions) and not np.asarray(result.visit_probs).any()
 
 
-def test_muzero_search_without_root_noise_is_mctx_muzero_policy_exactly(tsp_env):
+def test_the_noise_free_most_visited_search_is_mctx_muzero_policy_exactly(tsp_env):
     # The planner skips muzero_policy's Dirichlet sampling when its weight is 0
     # (a speed-up); the tree must be the one muzero_policy builds.
     config, params, latent = _setup(tsp_env, batch=16, num_simulations=8, num_abstract_actions=3)

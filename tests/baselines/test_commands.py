@@ -6,6 +6,7 @@ import pytest
 
 from pizero_ray.cli import main
 from pizero_ray.storage import run_dir as rundir
+from tests.figures import colour_pixels, read_rgb
 
 TINY_BASELINE = ["--preset", "tiny", "--selfplay-episodes", "4", "--batch-size", "16", "--replay-size", "8",
                  "--updates-per-iteration", "2", "--no-progress", "--checkpoint-every", "1"]
@@ -69,4 +70,22 @@ def test_a_baseline_trains_resumes_and_is_evaluated_rendered_and_inspected(tmp_p
     inspected = _json_line(capsys.readouterr().out)
     assert inspected["method"] == method and inspected["checkpoints"][-1] == 3
     out = tmp_path / "episode.png"
-    assert main(["render", str(run), "--out", str(out)]) == 0 and out.stat().st_size > 0
+    assert main(["render", str(run), "--out", str(out)]) == 0
+    _assert_final_flp_frame(out)
+
+
+def _assert_final_flp_frame(png):
+    """``pizero render``'s PNG of an FLP episode: the final placement drawn, and its caption below it."""
+    from envs import flp
+    from pizero_ray.cli import caption
+
+    image = read_rgb(png)
+    drawing, strip = image[:flp.SIZE], image[flp.SIZE:]
+    # FLP's square drawing, kept at its size (legible already), over a caption strip of two lines: 64 pixels
+    assert image.shape[:2] == (flp.SIZE + 64, flp.SIZE)
+    # The episode has ended: every facility is placed, each a square of 19 x 19 pixels drawn over the rest
+    # (one square at least: two may overlap), and the clients as dots, each with a link to its facility.
+    assert colour_pixels(drawing, flp.FACILITY_COLOUR) >= 19 * 19
+    assert colour_pixels(drawing, flp.CLIENT_COLOUR) >= 50
+    assert colour_pixels(drawing, flp.LINK_COLOUR) >= 50
+    assert colour_pixels(strip, caption.CAPTION_TEXT) >= 100  # the caption's text

@@ -21,8 +21,51 @@ def test_episode_key_differs_from_noise_stream_and_between_pairs():
     assert not np.array_equal(np.asarray(a), np.asarray(b))
 
 
-def test_iteration_seed_is_a_pure_function():
-    assert es.iteration_seed(0, 3) == es.iteration_seed(0, 3)
+# Every run's noise and episodes follow from these. Were their derivation to change, every run would change
+# with it and every checkpoint would resume onto other noise: these pins fail first. The noise and the part are
+# pinned as the trainer computes them, without the tests' faster-compile XLA flags (tests/conftest.py), which
+# move some normals by an ulp.
+PINNED_ITERATION_SEEDS = {(0, 0): 2968811710, (0, 1): 3964924996, (0, 2): 3141116543, (7, 1000): 2349628871}
+PINNED_NOISE = {
+    "pair_noise_bits": [1047637037, 3207368042, 3208805878, 1059568847, 3218130929, 3216217492],  # pair 5, seed 1234
+    "episode_key": [2156658113, 3351610066],  # pair 5's, iteration seed 1234
+    "low_rank_part_sha256": "739e091dbcdababaf5b26140de8087a18de368695cd52dcac117981777d2fe7c",
+}
+_PINNED_NOISE = """
+import hashlib, json
+import jax.numpy as jnp
+import numpy as np
+from pizero_ray import es
+from pizero_ray.config import build_config
+key = es.iteration_key(1234)
+noise = np.asarray(es.pair_noise(key, jnp.int32(5), 300))
+config = build_config("tiny", population=4, chunk_size=2, perturbation_rank=1)
+parts = es.gradient_parts(config, es.Perturbation(((6, 5), (5,)), 1))
+part = parts.regenerated(es.iteration_seed(0, 3), 2, np.array([0.5, -1.0], np.float32))
+print(json.dumps({"pair_noise_bits": np.concatenate([noise[:4], noise[-2:]]).view(np.uint32).tolist(),
+                  "episode_key": np.asarray(es.pair_episode_key(key, 5)).tolist(),
+                  "low_rank_part_sha256": hashlib.sha256(part.tobytes()).hexdigest()}))
+"""
+
+
+def test_iteration_seeds_are_pinned():
+    assert {key: es.iteration_seed(*key) for key in PINNED_ITERATION_SEEDS} == PINNED_ITERATION_SEEDS
+
+
+def test_a_pairs_noise_episodes_and_gradient_part_are_pinned():
+    """A rank-1 part is formed by elementwise products added in a fixed order: the same bits on any CPU."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {name: value for name, value in os.environ.items() if name != "XLA_FLAGS"}
+    out = subprocess.run([sys.executable, "-c", _PINNED_NOISE], env={**env, "JAX_PLATFORMS": "cpu"},
+                         capture_output=True, text=True, check=True).stdout
+    assert json.loads(out.strip().splitlines()[-1]) == PINNED_NOISE
+
+
+def test_iteration_seeds_differ_across_runs_and_iterations():
     seeds = {es.iteration_seed(s, i) for s in range(3) for i in range(50)}
     assert len(seeds) == 150
     assert all(0 <= s < 2**32 for s in seeds)

@@ -49,3 +49,31 @@ def test_a_population_that_ties_throughout_gives_zero_weights():
     valid = jnp.array([True] * 6 + [False] * 2)
     np.testing.assert_array_equal(es.pair_weights(scores, "centered_ranks", valid), np.zeros(8))
 
+
+
+@pytest.mark.parametrize("broken", [np.nan, np.inf, -np.inf])
+def test_a_non_finite_score_ranks_below_every_finite_one(broken):
+    """NaN sorts after +inf: left as it was, the pair (3, NaN) got weight -0.14, its broken member the best."""
+    scores = jnp.array([[1.0, 2.0], [3.0, broken], [0.5, 0.2], [2.0, 1.0]])
+    ranks = np.asarray(es.centered_ranks(scores))
+    assert ranks[1, 1] == -0.5 and (np.delete(ranks.reshape(-1), 3) > -0.5).all()  # alone at the lowest rank
+    weights = np.asarray(es.pair_weights(scores, "centered_ranks"))
+    assert np.isfinite(weights).all() and weights[1] == weights.max() > 0  # the pair steps towards +z
+    np.testing.assert_array_equal(weights, es.pair_weights(scores.at[1, 1].set(-10.0), "centered_ranks"))
+
+
+def test_non_finite_scores_tie_for_the_lowest_rank_and_a_dropped_pair_still_takes_none():
+    scores = jnp.array([[np.nan, -np.inf], [1.0, 2.0], [np.nan, 0.0], [5.0, 5.0]])
+    valid = jnp.array([True, True, True, False])
+    weights = np.asarray(es.pair_weights(scores, "centered_ranks", valid))
+    assert weights[0] == 0.0 and weights[3] == 0.0  # two broken members tie; the dropped pair weighs nothing
+    assert weights[2] < 0 and np.isfinite(weights).all()
+
+
+def test_raw_scores_count_a_non_finite_one_as_the_lowest_finite_score():
+    scores = jnp.array([[1.0, 2.0], [3.0, np.nan], [0.5, 0.2], [2.0, -np.inf]])
+    weights = np.asarray(es.pair_weights(scores, "none"))
+    np.testing.assert_allclose(weights, [-1.0, 3.0 - 0.2, 0.3, 2.0 - 0.2], rtol=1e-6)
+    assert np.isfinite(weights).all()
+    all_broken = np.asarray(es.pair_weights(jnp.full((3, 2), np.nan), "none"))
+    np.testing.assert_array_equal(all_broken, np.zeros(3))  # nothing to learn from: no step

@@ -148,3 +148,15 @@ def test_a_constant_step_size_keeps_the_optimiser_state_checkpoints_have():
     decayed = es.make_optimizer(build_config("tiny", lr_decay_iterations=10)).init(theta)
     assert jax.tree.structure(constant) == jax.tree.structure(before)
     assert len(jax.tree.leaves(decayed)) == len(jax.tree.leaves(before)) + 1  # the schedule's step count
+
+
+@pytest.mark.parametrize("shaping", ["centered_ranks", "none"])
+def test_a_broken_members_score_never_reaches_the_parameters(shaping):
+    config = build_config("tiny", population=4, chunk_size=2, fitness_shaping=shaping)
+    strategy = es.make_strategy(config, es.Perturbation(((5,),), 0))
+    state = strategy.init(np.zeros(5, np.float32))
+    scores = np.array([[1, 2], [3, np.nan], [0.5, 0.2], [2, np.inf]], np.float32)
+    state, stats = _tell_all_here(strategy, state, scores, np.ones(4, bool), 2)
+    assert np.isfinite(np.asarray(state.theta)).all() and stats.update_norm > 0
+    assert stats.non_finite_scores == 2
+    assert (stats.max_score, stats.min_score, stats.mean_score) == pytest.approx((3.0, 0.2, 8.7 / 6))  # the finite six

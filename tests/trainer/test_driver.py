@@ -7,11 +7,13 @@ import numpy as np
 import pytest
 
 import envs
+from pizero_ray import methods
 from pizero_ray.cli import main
 from pizero_ray.config import build_config
 from pizero_ray.es import population
 from pizero_ray.storage import run_dir, runs
 from pizero_ray.trainer import driver
+from tests.figures import assert_curves_drawn
 
 
 def _train(path, iterations, workers, compile_cache_dir, cpus_per_worker=1.0, eval_every=1, **overrides):
@@ -32,6 +34,18 @@ def two_iterations(ray_session, tmp_path_factory, compile_cache_dir):
     return path, _train(path, 2, 2, compile_cache_dir)
 
 
+def _held_out_optimal_tour(config, episodes: int) -> float:
+    """The mean optimal (Held-Karp) tour of the TSP instances the driver's learning curve is evaluated on."""
+    import jax
+
+    from envs import tsp
+    from pizero_ray.agent.episodes import episode_reset_keys
+
+    env = envs.make(config.env, **config.env_kwargs())
+    states, _ = jax.vmap(env.reset)(episode_reset_keys(jax.random.PRNGKey(driver.EVAL_SEED), episodes))
+    return float(tsp.optimal_tour_length(np.asarray(states.coordinates)).mean())
+
+
 def _inspect(path, capsys):
     assert main(["inspect", str(path), "--json"]) == 0
     return json.loads(capsys.readouterr().out)
@@ -42,9 +56,17 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(two_iterations, tmp_pa
     rows = run_dir.read_metrics(path)
     assert [row["iteration"] for row in rows] == [0, 1, 2]
     assert set(rows[0]) == {"iteration", "eval_mean_score", "wall_time_s"}  # the untrained agent
+    config = run_dir.read_config(path)
+    # A score is minus one closed tour through the cities (one step each: the horizon) in the unit square, each
+    # leg at most its diagonal.
+    longest_tour = envs.make(config.env, **config.env_kwargs()).spec.horizon * math.sqrt(2)
     for row in rows[1:]:
-        assert 1 <= row["workers"] <= 2 and row["mean_score"] < 0 and "eval_mean_score" in row
+        assert 1 <= row["workers"] <= 2 and "eval_mean_score" in row
+        assert -longest_tour <= row["min_score"] <= row["mean_score"] <= row["max_score"] < 0, row
         assert row["wall_time_s"] > 0
+    optimal = _held_out_optimal_tour(config, episodes=8)  # no agent's tours beat it on the same instances
+    for row in rows:  # (1e-4: the scores are float32 sums)
+        assert optimal - 1e-4 <= -row["eval_mean_score"] <= longest_tour, (row, optimal)
     info = _inspect(path, capsys)
     assert info["iteration"] == 2 and info["parameter_hash"] == result["parameter_hash"]
     assert info["checkpoints"] == [0, 2]  # 0: saved before the first iteration; 2: where the run ended
@@ -75,7 +97,8 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(two_iterations, tmp_pa
 
     out = tmp_path / "curve.png"
     assert main(["plot", str(path), "--out", str(out)]) == 0
-    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # 11 x 4 inches at 110 dpi; the run's one curve in both panels (against iteration, against minutes)
+    assert_curves_drawn(out, size=(1210, 440), panels=[("C0",)] * 2)
 
 
 def test_worker_count_and_a_resume_do_not_change_the_result(two_iterations, tmp_path, compile_cache_dir):
@@ -107,7 +130,7 @@ def test_gradient_parts_from_workers_equal_the_update_in_one_process(two_iterati
     config = build_config("tiny")
     env = envs.make(config.env, **config.env_kwargs())
     theta, layout = population.flat_params(config, env)
-    evaluate = population.make_pair_evaluator(config, env, layout)
+    evaluate = population.make_pair_scorer(config, env, layout)
     strategy = es.make_strategy(config, layout.perturbation)
     state = strategy.init(theta)
     valid = np.ones(config.population, bool)
@@ -137,9 +160,9 @@ def test_init_from_starts_where_the_other_run_stands(two_iterations, tmp_path, c
     assert [row["iteration"] for row in rows] == [0, 1]  # a run of its own, from iteration 0
 
     wider = build_config("tiny", hidden_size=16)
-    state, layout, _ = runs.initial_state(wider, runs.make_env(wider))
+    state, layout, _ = methods.initial_state(wider, methods.make_env(wider))
     with pytest.raises(ConfigError, match=r"--init-from .* does not fit this run's \(\d+ parameters\)"):
-        runs.warm_start(state, layout, source)
+        methods.warm_start(state, layout, source)
 
 
 def test_init_from_a_missing_run_is_a_one_line_error_and_writes_nothing(tmp_path, capsys):
@@ -173,7 +196,7 @@ def test_a_wall_clock_budget_stops_with_a_checkpoint_and_resume_raises_it(ray_se
     assert first["out_of_time"] and first["stopped_by"] is None and first["iteration"] >= 1
     assert rows[-1]["iteration"] == first["iteration"] and "eval_mean_score" in rows[-1]  # the last one is evaluated
     assert rows[-1]["wall_time_s"] >= 3.0 > rows[-2]["wall_time_s"]  # stopped by the first iteration past it
-    assert runs.load_run(path).iteration == first["iteration"]  # checkpointed where it stopped
+    assert methods.load_run(path).iteration == first["iteration"]  # checkpointed where it stopped
     evaluated_at_every_second(rows)
 
     spent = rows[-1]["wall_time_s"]
@@ -199,3 +222,69 @@ def test_a_run_needs_a_target_and_a_positive_budget(tmp_path, capsys):
     assert main(["train", "--run-dir", str(tmp_path / "x"), "--minutes", "0"]) == 2
     assert "--minutes must be positive, got 0" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()  # nothing written
+
+
+NAN_CONFIG = build_config("tiny", population=8, planner="none")  # 4 chunks; fake workers score them (no JAX)
+
+
+def test_an_environment_that_scores_nan_everywhere_stops_the_run_in_one_line(
+        tmp_path, monkeypatch, ray_session, compile_cache_dir, capsys):
+    """No finite score is left to learn from: the run stops, naming the iteration and a member, before the
+    update; the checkpoint of iteration 0 stands."""
+    from tests.trainer import fake_workers
+
+    fake_workers.use(monkeypatch, NAN_CONFIG, scores=lambda seed, first, chunk: np.full((chunk, 2), np.nan))
+    code = main(["train", "--run-dir", str(tmp_path), "--preset", "tiny", "--population", "8", "--planner", "none",
+                 "--iterations", "3", "--workers", "1", "--compile-cache", compile_cache_dir, "--no-progress"])
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert errors[-1] == ("pizero: error: iteration 1: no member scored a finite score (pair 0's +sigma member "
+                          "scored nan); check the environment's rewards")
+    assert methods.load_run(tmp_path).iteration == 0 and run_dir.read_metrics(tmp_path) == []
+
+
+def test_a_member_scoring_nan_ranks_last_is_counted_and_warned_of(tmp_path, monkeypatch, ray_session,
+                                                                  compile_cache_dir, caplog):
+    from tests.trainer import fake_workers
+
+    def one_broken(seed, first_pair, chunk):
+        scores = fake_workers.untied_scores(seed, first_pair, chunk)
+        if first_pair == 2:
+            scores[1, 0] = np.nan  # pair 3's +sigma member, every iteration
+        return scores
+
+    fake_workers.use(monkeypatch, NAN_CONFIG, scores=one_broken)
+    run_dir.write_config(tmp_path, NAN_CONFIG)
+    options = driver.RunOptions.create(iterations=2, workers=1, checkpoint_every=0, compile_cache=compile_cache_dir,
+                                       gradient_on="driver")
+    with caplog.at_level("WARNING", logger="pizero_ray.trainer.driver"):
+        driver.train(tmp_path, NAN_CONFIG, options)
+    rows = [row for row in run_dir.read_metrics(tmp_path) if row["iteration"] > 0]
+    assert [row["non_finite_scores"] for row in rows] == [1, 1]
+    assert all(math.isfinite(row[key]) for row in rows for key in ("mean_score", "min_score", "update_norm"))
+    assert np.isfinite(methods.load_run(tmp_path).theta).all()
+    warnings = [record.getMessage() for record in caplog.records]
+    assert warnings[0] == ("pizero: warning: iteration 1: 1 member(s) scored NaN or infinity and rank last "
+                           "(pair 3's +sigma member scored nan)")
+
+
+def test_a_baseline_whose_rewards_are_nan_stops_before_keeping_the_parameters(tmp_path, monkeypatch):
+    """AlphaZero learns in the driver's process: a NaN reward would reach its loss and, from there, every
+    parameter. The run stops at the first such iteration instead, one line naming what is not finite."""
+    config = build_config("tiny", method="alphazero", env="tsp")
+    real_make_env = methods.make_env
+
+    def nan_rewards(config, **env_args):
+        env = real_make_env(config, **env_args)
+
+        def step(state, action):
+            state, observation, reward, done = env.step(state, action)
+            return state, observation, reward * np.nan, done
+
+        return env._replace(step=step)
+
+    monkeypatch.setattr(methods, "make_env", nan_rewards)
+    run_dir.write_config(tmp_path, config)
+    with pytest.raises(driver.TrainingError, match=r"^iteration 1: the self-play score, loss, .* is not finite"):
+        driver.train(tmp_path, config, driver.RunOptions.create(iterations=2, checkpoint_every=0))
+    assert methods.load_run(tmp_path).iteration == 0  # the parameters trained on NaN were never kept

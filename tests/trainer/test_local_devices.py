@@ -83,6 +83,20 @@ def test_a_straggler_of_an_older_iteration_keeps_the_newer_ones_noise(chunks, th
     assert chunks.regenerated_parts == regenerated_before  # both parts from the kept noise
 
 
+def test_a_scorer_that_keeps_no_noise_regenerates_every_part(theta_and_reference):
+    """Where the driver forms every part (--gradient-on driver, or auto with rank-1 noise on CPU workers)
+    nobody asks a worker for one: keeping the noise would only hold memory."""
+    theta, _ = theta_and_reference
+    scorer = local_devices.ChunkScorer(CONFIG, max_devices=1, keep_noise=False)
+    scorer.score(theta, SEED, 0)
+    assert len(scorer._kept) == 0
+    weights = np.linspace(-1, 1, CONFIG.chunk_size).astype(np.float32)
+    layout = population.flat_params(CONFIG, envs.make(CONFIG.env, **CONFIG.env_kwargs()))[1]
+    np.testing.assert_array_equal(scorer.gradient_part(SEED, 0, weights),
+                                  es.gradient_parts(CONFIG, layout.perturbation).regenerated(SEED, 0, weights))
+    assert scorer.regenerated_parts == 1
+
+
 def test_the_noise_cache_keeps_the_two_newest_seeds_within_its_byte_cap():
     cache = local_devices.NoiseCache(chunk_bytes=10, max_bytes=30)
     cache.keep(1, 0, "1/0")

@@ -7,6 +7,7 @@ from pizero_ray.config import build_config
 from pizero_ray.storage import run_dir
 from pizero_ray.trainer import driver
 from tests.conftest import OBJECT_STORE_BYTES
+from tests.trainer import fake_workers
 
 ITERATIONS = 4
 # 4 chunks of 2 pairs per iteration. No planner: what is checked here is the pool (faults, nodes, stragglers),
@@ -73,10 +74,38 @@ def test_node_removed_and_another_added(tmp_path, compile_cache_dir, reference_h
     assert "new_worker_first_result_s" in rows[2]
 
 
-def test_min_fraction_finishes_iterations_early(tmp_path, compile_cache_dir):
-    result, rows = _train(tmp_path, compile_cache_dir, min_fraction=0.5)
-    assert result["iteration"] == ITERATIONS
-    assert all(CONFIG.population // 2 <= row["pairs_evaluated"] <= CONFIG.population for row in rows)
+def test_min_fraction_ends_an_iteration_without_its_hung_chunk(tmp_path, monkeypatch, ray_session, compile_cache_dir):
+    """Chunk 1 of the first iteration never finishes. With half the chunks enough, the iteration ends without
+    it: no kill, no requeue, fewer pairs. (Were min_fraction ignored, the chunk would hang past its deadline on
+    each worker in turn until the run gave up on it.)"""
+    from pizero_ray import es
+
+    _fake_workers(monkeypatch, hang_on=(es.iteration_seed(CONFIG.seed, 0), CONFIG.chunk_size))
+    result, rows = _train(tmp_path, compile_cache_dir, workers=1, min_fraction=0.5, chunk_timeout_s=3.0)
+    assert result["iteration"] == ITERATIONS and result["workers_killed"] == 0
+    first = rows[0]
+    assert CONFIG.population // 2 <= first["pairs_evaluated"] < CONFIG.population
+    assert first["requeued_chunks"] == 0
+
+
+@pytest.mark.parametrize("rank, gradient_on, kept", [(1, "auto", False), (0, "auto", True), (1, "workers", True),
+                                                     (0, "driver", False)])
+def test_workers_keep_their_noise_only_where_parts_are_asked_of_them(monkeypatch, rank, gradient_on, kept):
+    import types
+
+    from pizero_ray.trainer import workers
+    from pizero_ray.trainer.options import PoolOptions
+    from pizero_ray.trainer.pool import WorkerPool
+
+    started = []
+
+    def start_worker(*args, keep_noise, **kwargs):  # records what the pool asks for; starts nothing
+        started.append(keep_noise)
+        return types.SimpleNamespace(ready=types.SimpleNamespace(remote=lambda: None))
+
+    monkeypatch.setattr(workers, "start_worker", start_worker)
+    WorkerPool(build_config("tiny", perturbation_rank=rank), PoolOptions(workers=2, gradient_on=gradient_on))
+    assert started == [kept, kept]
 
 
 def test_chaos_command_reports_identical_hashes(tmp_path, compile_cache_dir, capsys):
@@ -195,63 +224,8 @@ def _wait_until_dead(ray, actor, timeout_s: float = 30.0) -> None:
     raise AssertionError(f"the killed actor still answers after {timeout_s} s")
 
 
-def _fake_workers(monkeypatch, hang_on=None, part_delay_s=0.0, sigterm_on_seed=None):
-    """The pool's workers become light fake actors (no JAX): untied scores and zero parts, at once unless told.
-
-    ``hang_on``: (seed, first pair) of a chunk that never finishes; ``part_delay_s``:
-    how long ``gradient_part`` takes; ``sigterm_on_seed``: ``gradient_part`` of that
-    seed first sends SIGTERM to this (the driver's) process, once, then hangs.
-    """
-    import os
-    import tempfile
-
-    import envs
-    from pizero_ray.es import population
-    from pizero_ray.trainer import workers
-
-    chunk = CONFIG.chunk_size
-    size = population.flat_params(CONFIG, envs.make(CONFIG.env))[1].size
-    driver_pid = os.getpid()
-    signalled = os.path.join(tempfile.mkdtemp(prefix="pizero-fake-sigterm-"), "sent")
-
-    class FakeWorker:  # defined in a function: Ray pickles it by value
-        def ready(self):
-            import os
-
-            import ray
-            return {"pid": os.getpid(), "node_id": ray.get_runtime_context().get_node_id(), "devices": 1}
-
-        def score_chunk(self, theta, seed, first_pair):
-            import time
-
-            import numpy as np
-            if (seed, first_pair) == hang_on:
-                time.sleep(3600)
-            # Untied scores: with ties every weight would be 0 and no part would be asked of a worker.
-            pairs = np.arange(first_pair, first_pair + chunk, dtype=np.float32)
-            return np.stack([pairs, -pairs], axis=1)
-
-        def gradient_part(self, seed, first_pair, weights):
-            import os
-            import signal
-            import time
-
-            import numpy as np
-            if seed == sigterm_on_seed:
-                try:  # one SIGTERM in all, whichever chunk's part comes first: a second one means "hurry"
-                    os.close(os.open(signalled, os.O_CREAT | os.O_EXCL))
-                    os.kill(driver_pid, signal.SIGTERM)
-                except FileExistsError:
-                    pass
-                time.sleep(3600)
-            time.sleep(part_delay_s)
-            return np.zeros(size, np.float32)
-
-    def start_worker(*args, **kwargs):
-        import ray
-        return ray.remote(FakeWorker).options(num_cpus=0, max_concurrency=2).remote()
-
-    monkeypatch.setattr(workers, "start_worker", start_worker)
+def _fake_workers(monkeypatch, **behaviour):
+    fake_workers.use(monkeypatch, CONFIG, **behaviour)
 
 
 def _never(index):

@@ -1,0 +1,69 @@
+"""Light fake worker actors (no JAX) for the pool's and the driver's tests: they answer at once unless told."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+
+def untied_scores(seed: int, first_pair: int, chunk: int) -> np.ndarray:
+    """Scores [chunk, 2] with no ties: with ties every weight would be 0 and no part would be asked of a worker."""
+    pairs = np.arange(first_pair, first_pair + chunk, dtype=np.float32)
+    return np.stack([pairs, -pairs], axis=1)
+
+
+def use(monkeypatch, config, hang_on=None, part_delay_s: float = 0.0, sigterm_on_seed=None,
+        scores: Callable[[int, int, int], np.ndarray] = untied_scores) -> None:
+    """The pool's workers become fakes: ``scores(seed, first pair, chunk size)`` for each chunk, zero parts.
+
+    ``hang_on``: (seed, first pair) of a chunk that never finishes; ``part_delay_s``:
+    how long ``gradient_part`` takes; ``sigterm_on_seed``: ``gradient_part`` of that
+    seed first sends SIGTERM to this (the driver's) process, once, then hangs.
+    """
+    import os
+    import tempfile
+
+    import envs
+    from pizero_ray.es import population
+    from pizero_ray.trainer import workers
+
+    chunk = config.chunk_size
+    size = population.flat_params(config, envs.make(config.env))[1].size
+    driver_pid = os.getpid()
+    signalled = os.path.join(tempfile.mkdtemp(prefix="pizero-fake-sigterm-"), "sent")
+
+    class FakeWorker:  # defined in a function: Ray pickles it by value
+        def ready(self):
+            import os
+
+            import ray
+            return {"pid": os.getpid(), "node_id": ray.get_runtime_context().get_node_id(), "devices": 1}
+
+        def score_chunk(self, theta, seed, first_pair):
+            import time
+            if (seed, first_pair) == hang_on:
+                time.sleep(3600)
+            return scores(seed, first_pair, chunk)
+
+        def gradient_part(self, seed, first_pair, weights):
+            import os
+            import signal
+            import time
+
+            import numpy as np
+            if seed == sigterm_on_seed:
+                try:  # one SIGTERM in all, whichever chunk's part comes first: a second one means "hurry"
+                    os.close(os.open(signalled, os.O_CREAT | os.O_EXCL))
+                    os.kill(driver_pid, signal.SIGTERM)
+                except FileExistsError:
+                    pass
+                time.sleep(3600)
+            time.sleep(part_delay_s)
+            return np.zeros(size, np.float32)
+
+    def start_worker(*args, **kwargs):
+        import ray
+        return ray.remote(FakeWorker).options(num_cpus=0, max_concurrency=2).remote()
+
+    monkeypatch.setattr(workers, "start_worker", start_worker)
