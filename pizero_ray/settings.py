@@ -1,7 +1,7 @@
 """Settings declared once: a dataclass field carries its default, flag, help and allowed values.
 
 ``setting(...)`` is ``dataclasses.field`` with the rest in the field's
-metadata. The command line is generated from ``declared(cls)`` (cli/commands),
+metadata. The command line is generated from ``declared(cls)`` (cli/arguments),
 the options check their values against it, and tests/test_readme_options.py
 holds the README's option table to it. Pure Python: no JAX, no Ray.
 """

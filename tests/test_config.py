@@ -7,10 +7,15 @@ import re
 
 import pytest
 
-from pizero_ray.cli import commands as cli
+from pizero_ray.cli import commands, training
 from pizero_ray.config import Config, ConfigError, build_config, largest_divisor_at_most
 from pizero_ray.presets import ENV_PRESETS, METHOD_ENV_PRESETS, METHOD_PRESETS, PRESETS
 from pizero_ray.settings import declared, lookup
+
+
+def _parse(argv: list[str]):
+    """The ``pizero`` command line's arguments, parsed as ``main`` parses them."""
+    return commands.build_parser().parse_args(argv)
 
 
 @pytest.mark.parametrize("number, limit, expected", [(24, 32, 24), (1000, 32, 25), (64, 32, 32), (7, 32, 7),
@@ -33,8 +38,8 @@ def test_an_explicit_chunk_size_that_does_not_divide_is_still_an_error():
 
 
 def test_train_with_population_24_and_no_chunk_size_is_accepted():
-    args = cli._parser().parse_args(["train", "--run-dir", "unused", "--env", "tsp", "--population", "24"])
-    config = cli._train_config(args)
+    args = _parse(["train", "--run-dir", "unused", "--env", "tsp", "--population", "24"])
+    config = training.train_config(args)
     assert (config.population, config.chunk_size) == (24, 24)
 
 
@@ -171,7 +176,7 @@ def test_environment_presets_name_real_environments_and_presets():
 
 
 def test_train_help_names_each_method_environment_setting_from_its_table():
-    (sub,) = [a for a in cli._parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    (sub,) = [a for a in commands.build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
     train = {a.dest: a.help for a in sub.choices["train"]._actions}
     assert train["num_simulations"] == "search budget K (alphazero on tsp, flp, flp-mean: 32)"
     assert train["replay_size"].endswith("(muzero on collect, pacman, pacman-po: 1024)")
@@ -182,7 +187,7 @@ def test_train_help_names_each_method_environment_setting_from_its_table():
 def test_every_option_of_train_is_a_declared_setting_or_the_commands_own():
     from pizero_ray.trainer.options import PoolOptions, RunOptions
 
-    (sub,) = [a for a in cli._parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    (sub,) = [a for a in commands.build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
     train = {a.dest: a for a in sub.choices["train"]._actions}
     settings = [s for cls in (Config, RunOptions) for s in declared(cls) if s.flag]
     assert {s.name for s in settings} | {"help", "run_dir", "preset", "no_progress"} == set(train)
@@ -203,41 +208,41 @@ def test_every_option_of_train_is_a_declared_setting_or_the_commands_own():
     (["--preset", "paper", "--env", "pacman"], {"env": "pacman", "population": 1000, "env_args": (("horizon", 1000),)}),
 ])
 def test_config_flags_set_their_fields(argv, expected):
-    config = cli._train_config(cli._parser().parse_args(["train", "--run-dir", "unused", *argv]))
+    config = training.train_config(_parse(["train", "--run-dir", "unused", *argv]))
     assert {name: getattr(config, name) for name in expected} == expected
 
 
 def test_run_options_come_from_their_declared_defaults_and_flags():
     from pizero_ray.trainer.options import PoolOptions, RunOptions
 
-    args = cli._parser().parse_args(["train", "--run-dir", "unused"])
-    assert cli._run_options(args, 400) == RunOptions(iterations=400)
+    args = _parse(["train", "--run-dir", "unused"])
+    assert training.run_options(args, 400) == RunOptions(iterations=400)
     assert RunOptions(iterations=1).pool.chunk_timeout_s == 300.0 == lookup(PoolOptions, "chunk_timeout_s").default
-    args = cli._parser().parse_args(["resume", "unused", "--iterations", "9", "--workers", "3", "--max-workers", "5",
-                                     "--no-pin-cores", "--chunk-timeout", "10", "--compile-cache", "none"])
-    options = cli._run_options(args, args.iterations)
+    args = _parse(["resume", "unused", "--iterations", "9", "--workers", "3", "--max-workers", "5",
+                   "--no-pin-cores", "--chunk-timeout", "10", "--compile-cache", "none"])
+    options = training.run_options(args, args.iterations)
     assert options.iterations == 9 and options.pool.target_workers == 5 and not options.pool.pin_cores
     assert (options.pool.workers, options.pool.chunk_timeout_s, options.pool.compile_cache) == (3, 10.0, "none")
-    args = cli._parser().parse_args(["resume", "unused", "--minutes", "5", "--eval-every-minutes", "0.5",
-                                     "--eval-env-arg", "levels=valid", "--eval-env-arg", "horizon=60"])
-    options = cli._run_options(args, None)
+    args = _parse(["resume", "unused", "--minutes", "5", "--eval-every-minutes", "0.5",
+                   "--eval-env-arg", "levels=valid", "--eval-env-arg", "horizon=60"])
+    options = training.run_options(args, None)
     assert options.eval_every_minutes == 0.5 and options.eval_env_args == (("horizon", 60), ("levels", "valid"))
 
 
 def test_a_resume_keeps_the_stored_learning_curve_schedule_unless_an_option_is_given(tmp_path):
     from pizero_ray.storage import run_dir
 
-    args = cli._parser().parse_args(["train", "--run-dir", "unused", "--eval-every", "25", "--eval-episodes", "64",
-                                     "--eval-env-arg", "levels=valid"])
-    trained = cli._run_options(args, 100)
+    args = _parse(["train", "--run-dir", "unused", "--eval-every", "25", "--eval-episodes", "64",
+                   "--eval-env-arg", "levels=valid"])
+    trained = training.run_options(args, 100)
     run_dir.write_evaluation_schedule(tmp_path, trained.evaluation_schedule())
     kept = run_dir.read_evaluation_schedule(tmp_path)
     assert kept == {"eval_every": 25, "eval_every_minutes": None, "eval_episodes": 64,
                     "eval_env_args": [["levels", "valid"]]}
-    resumed = cli._run_options(cli._parser().parse_args(["resume", "unused", "--minutes", "30"]), None, kept)
+    resumed = training.run_options(_parse(["resume", "unused", "--minutes", "30"]), None, kept)
     assert [getattr(resumed, name) for name in kept] == [getattr(trained, name) for name in kept]
-    args = cli._parser().parse_args(["resume", "unused", "--minutes", "30", "--eval-every", "0"])
-    assert cli._run_options(args, None, kept).eval_every == 0  # a given option wins
+    args = _parse(["resume", "unused", "--minutes", "30", "--eval-every", "0"])
+    assert training.run_options(args, None, kept).eval_every == 0  # a given option wins
     assert run_dir.read_evaluation_schedule(tmp_path / "older") == {}  # run dirs from before: today's defaults
 
 

@@ -294,9 +294,9 @@ def test_train_or_resume_rejects_bad_arguments(fake_pizero, args):
 
 
 def _pizero_options() -> dict[str, set[str]]:
-    from pizero_ray.cli.commands import _parser
+    from pizero_ray.cli.commands import build_parser
 
-    (sub,) = [a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    (sub,) = [a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
     return {name: set(sub.choices[name]._option_string_actions) for name in ("train", "resume")}
 
 

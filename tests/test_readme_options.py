@@ -6,7 +6,7 @@ import argparse
 import re
 from pathlib import Path
 
-from pizero_ray.cli import commands
+from pizero_ray.cli import commands, training
 from pizero_ray.config import Config
 from pizero_ray.settings import Setting, declared
 from pizero_ray.trainer.options import RunOptions
@@ -40,7 +40,7 @@ def test_the_table_lists_every_declared_setting_and_nothing_else():
     declared_flags = set(_settings())
     assert declared_flags - set(table) == set(), "declared but missing from the README table"
     assert set(table) - declared_flags == CLI_OWN, "in the README table but not declared"
-    (sub,) = [a for a in commands._parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    (sub,) = [a for a in commands.build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
     assert set(table) <= set(sub.choices["train"]._option_string_actions)
 
 
@@ -54,7 +54,7 @@ def test_the_defaults_in_the_table_are_the_declared_ones():
             if flag in CLI_OWN:
                 continue
             setting = settings[flag]
-            default = commands.DEFAULT_ITERATIONS if flag == "--iterations" else setting.default
+            default = training.DEFAULT_ITERATIONS if flag == "--iterations" else setting.default
             number = NUMBER.match(item)
             if number:  # "300", "0.01", "0 (off)"
                 assert isinstance(default, (int, float)) and not isinstance(default, bool), (flag, item, default)
