@@ -154,6 +154,7 @@ class _Run:
         import ray
 
         started = time.time()
+        lost_before = self.pool.workers_lost
         seed = self.method.ask(self.state)
         theta_ref = ray.put(np.asarray(self.state.theta))  # once per iteration; each node fetches it once
         result = self.pool.score_population(theta_ref, seed, self.state.iteration, should_stop=stop)
@@ -168,6 +169,7 @@ class _Run:
         self.state = state  # only a finished iteration moves the state: an interrupted one is dropped
         now = time.time()
         row = {"iteration": state.iteration, **_score_stats(stats), "requeued_chunks": result.requeued_chunks,
+               "workers_lost": self.pool.workers_lost - lost_before,
                "gradient_parts_on_driver": parts_here, "iteration_time_s": now - started,
                "update_time_s": now - scored, "wall_time_s": self.wall_time_s(),
                "gradient_norm": stats.gradient_norm, "update_norm": stats.update_norm,

@@ -2,8 +2,11 @@
 
 Workers come and go: a chunk whose worker dies (actor death, node loss,
 preemption) or hangs past its deadline goes back on the queue and runs
-elsewhere; the pool keeps asking Ray for ``max_workers`` actors, so replacements
-and actors on newly joined nodes start as soon as the cluster has room (which is
+elsewhere. A death puts the dead worker's idle node-mates under suspicion:
+each answers a ping before it gets another chunk, so the workers of a lost
+node are found dead by pings, not by handing them chunks one after another.
+The pool keeps asking Ray for ``max_workers`` actors, so replacements and
+actors on newly joined nodes start as soon as the cluster has room (which is
 also the demand an autoscaler sees). Only workers that finished compiling get
 chunks. Every wait has a timeout, and looks at the driver's stop request at
 least every ``POLL_S``.
@@ -36,7 +39,7 @@ class Interrupted(Exception):
     """A stop was requested (SIGTERM/SIGINT) while an iteration was under way."""
 
 
-@dataclass
+@dataclass(eq=False)  # a worker is itself: compared by identity, not by its fields
 class _Worker:
     actor: Any
     created: float
@@ -45,6 +48,8 @@ class _Worker:
     in_flight: int = 0
     info: dict = field(default_factory=dict)
     first_result_s: float | None = None  # actor creation to its first chunk result
+    ping_ref: Any = None  # a liveness check in flight (a node-mate died): no chunk until it answers
+    ping_deadline: float = 0.0
 
 
 def serialized_bytes(obj) -> int:
@@ -113,6 +118,7 @@ class WorkerPool:
         self._startup_failures = 0
         self._last_ready_time = time.time()
         self.kills = 0
+        self.workers_lost = 0  # ready workers found dead or hung and dropped, over the pool's life
         self._kills_done: set[tuple[int, int]] = set()
         self._traffic = Traffic()  # the current iteration's bytes (score_population starts a new count)
         self.top_up()
@@ -158,7 +164,7 @@ class WorkerPool:
         except GetTimeoutError:
             return
         except RayError as error:
-            self._drop(worker, kill=False)
+            self._drop(worker, kill=True)  # dead already, unless only its call was lost: never leak it
             self._startup_failures += 1
             if self._startup_failures >= MAX_STARTUP_FAILURES:
                 raise TrainingError(f"workers keep dying while starting: {error}") from None
@@ -175,7 +181,7 @@ class WorkerPool:
         if expired:  # a result that is in but not yet collected (one per ray.wait) is no hang
             done, _ = ray.wait(expired, num_returns=len(expired), timeout=0, fetch_local=False)
             for ref in set(expired) - set(done):
-                self._drop(self._stale[ref][0], kill=True)
+                self.lose(self._stale[ref][0])
         for ref, (worker, _) in list(self._stale.items()):
             if worker not in self._workers:  # gone (killed above, or died): nothing to wait for
                 del self._stale[ref]
@@ -187,6 +193,36 @@ class WorkerPool:
             self._workers.remove(worker)
         if kill:
             ray.kill(worker.actor, no_restart=True)
+
+    def lose(self, worker: _Worker) -> None:
+        """A ready worker died or hung: drop it (killed, so a hung or half-dead actor frees its resources), and
+        check its idle node-mates before they get chunks: a node lost takes all its workers at once."""
+        if worker not in self._workers:
+            return
+        self._drop(worker, kill=True)
+        self.workers_lost += 1
+        node = worker.info.get("node_id")
+        deadline = time.time() + self._options.chunk_timeout_s
+        for mate in self._workers:
+            if mate.ready and mate.in_flight == 0 and mate.ping_ref is None and mate.info.get("node_id") == node:
+                mate.ping_ref, mate.ping_deadline = mate.actor.ready.remote(), deadline
+
+    def _pinged(self, worker: _Worker) -> None:
+        """A suspect worker's ping is back: it is alive and takes chunks again, or it is dropped."""
+        import ray
+        from ray.exceptions import GetTimeoutError, RayError
+
+        try:
+            ray.get(worker.ping_ref, timeout=POLL_S)
+        except (RayError, GetTimeoutError):
+            self.lose(worker)
+        worker.ping_ref = None
+
+    def _expire_pings(self, now: float) -> None:
+        """A suspect that has not answered its ping by the chunk timeout is hung: drop it."""
+        for worker in [w for w in self._workers if w.ping_ref is not None and now > w.ping_deadline]:
+            self.lose(worker)
+            worker.ping_ref = None
 
     def shutdown(self) -> None:
         for worker in list(self._workers):
@@ -208,17 +244,21 @@ class WorkerPool:
             self.top_up()
             queue.dispatch()
             starting = {w.ready_ref: w for w in self._workers if not w.ready}
-            waitable = list(queue.in_flight) + list(starting) + list(self._stale)
+            pinged = {w.ping_ref: w for w in self._workers if w.ping_ref is not None}
+            waitable = list(queue.in_flight) + list(starting) + list(pinged) + list(self._stale)
             ready_refs, _ = ray.wait(waitable, num_returns=1, timeout=POLL_S) if waitable else ([], [])
             for ref in ready_refs:
                 if ref in starting:
                     self._started(starting[ref], ref)
+                elif ref in pinged:
+                    self._pinged(pinged[ref])
                 elif ref in self._stale:
                     self._stale.pop(ref)[0].in_flight -= 1
                 else:
                     queue.collect(ref)
             now = time.time()
             self._expire_stale(now)
+            self._expire_pings(now)
             queue.expire(now)
             self._check_workers_start(now)
         # min_fraction: stragglers finish in the background and are ignored, by their deadlines.
@@ -310,7 +350,7 @@ class WorkerPool:
                 except GetTimeoutError:
                     pass  # (a RayError too) slow, not dead: the part is computed elsewhere
                 except RayError:
-                    self._drop(worker, kill=False)  # the worker died: the part is computed elsewhere
+                    self.lose(worker)  # the worker died: the part is computed elsewhere
         return parts
 
 
@@ -343,7 +383,8 @@ class _ChunkQueue:
         options = self.pool._options
         for worker in self.pool._workers:
             devices = worker.info.get("devices", 1)  # chunks the worker runs at once
-            while worker.ready and self.pending and worker.in_flight < options.in_flight_per_worker * devices:
+            while (worker.ready and worker.ping_ref is None and self.pending
+                   and worker.in_flight < options.in_flight_per_worker * devices):
                 index = self.pending.popleft()
                 ref = worker.actor.score_chunk.remote(self.theta_ref, self.seed, index * self.chunk)
                 self._count_dispatch(worker, index)
@@ -379,7 +420,7 @@ class _ChunkQueue:
         except RayTaskError as error:
             raise TrainingError(f"a worker failed evaluating chunk {index}: {error}") from None
         except (RayError, GetTimeoutError):
-            self._fail(index, worker, kill=False)  # the worker died (or its node did): the chunk runs elsewhere
+            self._fail(index, worker)  # the worker died (or its node did): the chunk runs elsewhere
             return
         self.traffic.from_workers += serialized_bytes(self.results[index])
         self.owners[index] = worker
@@ -390,23 +431,28 @@ class _ChunkQueue:
 
     def expire(self, now: float) -> None:
         """Kills workers past a chunk's deadline (hung) and requeues the chunks of every dropped worker."""
-        for ref, (index, worker, deadline) in list(self.in_flight.items()):
-            if now > deadline:
-                del self.in_flight[ref]
-                self._fail(index, worker, kill=True)
+        import ray
+
+        expired = [ref for ref, (_, _, deadline) in self.in_flight.items() if now > deadline]
+        if expired:  # a result that is in but not yet collected (one per ray.wait) is no hang
+            done, _ = ray.wait(expired, num_returns=len(expired), timeout=0, fetch_local=False)
+            for ref in set(expired) - set(done):
+                index, worker, _ = self.in_flight.pop(ref)
+                self._fail(index, worker)
         for ref, (index, worker, _) in list(self.in_flight.items()):
             if worker not in self.pool._workers:  # dropped: its other chunks go back too
                 del self.in_flight[ref]
                 self.pending.appendleft(index)
                 self.requeued += 1
 
-    def _fail(self, index: int, worker: _Worker, kill: bool) -> None:
+    def _fail(self, index: int, worker: _Worker) -> None:
+        """Chunk ``index``'s worker died or hung on it: the chunk goes back, first in line; the worker is lost."""
         self.failures[index] = self.failures.get(index, 0) + 1
         if self.failures[index] >= MAX_CHUNK_FAILURES:
             raise TrainingError(f"chunk {index} failed on {self.failures[index]} workers; giving up")
         self.pending.appendleft(index)
         self.requeued += 1
-        self.pool._drop(worker, kill=kill)
+        self.pool.lose(worker)
 
     def result(self) -> IterationResult:
         population = self.num_chunks * self.chunk

@@ -1,5 +1,7 @@
 """The elastic pool: workers die, nodes come and go, stragglers hang; the parameters stay bit-identical."""
 
+import dataclasses
+
 import pytest
 
 from pizero_ray import methods
@@ -43,7 +45,7 @@ def test_sigkilled_workers_mid_iteration(tmp_path, compile_cache_dir, reference_
     # Right after chunk 0 of iteration 1 and chunk 3 of iteration 2 are handed out,
     # the process holding them is SIGKILLed.
     result, rows = _train(tmp_path, compile_cache_dir, kill_schedule=frozenset({(1, 0), (2, 3)}))
-    assert result["workers_killed"] == 2
+    assert result["workers_killed"] == 2 and sum(row["workers_lost"] for row in rows) == 2
     assert sum(row["requeued_chunks"] for row in rows) >= 2
     assert result["parameter_hash"] == reference_hash
 
@@ -226,6 +228,107 @@ def _wait_until_dead(ray, actor, timeout_s: float = 30.0) -> None:
 
 def _fake_workers(monkeypatch, **behaviour):
     fake_workers.use(monkeypatch, CONFIG, **behaviour)
+
+
+def _ready_pool(ray, options, population_seed=1):
+    """A pool whose every worker is up (each has answered ``ready``)."""
+    import time
+
+    import numpy as np
+
+    from pizero_ray.trainer.pool import WorkerPool
+
+    pool = WorkerPool(CONFIG, options)
+    theta_ref = ray.put(np.zeros(3, np.float32))
+    deadline = time.time() + 120
+    while pool.live_workers < options.workers and time.time() < deadline:
+        pool.score_population(theta_ref, population_seed)
+    assert pool.live_workers == options.workers
+    return pool, theta_ref
+
+
+def test_idle_workers_lost_with_their_node_never_take_a_chunk(ray_session, monkeypatch):
+    """Nine of ten idle workers die at once, as a node's would. The first chunk to find one dead puts its
+    node's other workers under suspicion: each must answer a ping before it gets a chunk, so no chunk is
+    handed from dead worker to dead worker until it counts as a bug (MAX_CHUNK_FAILURES) and the run stops."""
+    from pizero_ray.trainer.options import PoolOptions
+
+    _fake_workers(monkeypatch)
+    pool, theta_ref = _ready_pool(ray_session, PoolOptions(workers=10, compile_cache=None))
+    try:
+        *dead, alive = pool._workers
+        for worker in dead:
+            ray_session.kill(worker.actor, no_restart=True)
+        for worker in dead:
+            _wait_until_dead(ray_session, worker.actor)
+        pool._options = dataclasses.replace(pool._options, workers=1)  # no replacements: the survivor does it all
+        result = pool.score_population(theta_ref, 2)
+        assert result.valid.all() and pool._workers == [alive] and pool.workers_lost == 9
+        # Chunks found dead workers only until each node's first death (the test cluster has two nodes), and
+        # took the chunks in flight there back with them: pings found the rest.
+        assert result.requeued_chunks <= 2 * CONFIG.num_chunks < 9
+    finally:
+        pool.shutdown()
+
+
+def _one_chunk_in_flight(ray, pool, theta_ref, deadline):
+    """A queue whose chunk 0 is in flight on the pool's one worker, its result already in (a put object)."""
+    import numpy as np
+
+    from pizero_ray.trainer.pool import Traffic, _ChunkQueue
+
+    (worker,) = pool._workers
+    queue = _ChunkQueue(pool, theta_ref, 1, 0, Traffic())
+    ref = ray.put(np.zeros((CONFIG.chunk_size, 2), np.float32))
+    ray.wait([ref])
+    queue.in_flight[ref] = (0, worker, deadline)
+    worker.in_flight += 1
+    return queue, worker, ref
+
+
+def test_a_chunk_whose_result_is_in_at_its_deadline_is_collected_not_killed(ray_session, monkeypatch):
+    import time
+
+    from pizero_ray.trainer.options import PoolOptions
+
+    _fake_workers(monkeypatch)
+    pool, theta_ref = _ready_pool(ray_session, PoolOptions(workers=1, compile_cache=None))
+    try:
+        queue, worker, ref = _one_chunk_in_flight(ray_session, pool, theta_ref, deadline=time.time() - 1)
+        queue.expire(time.time())  # past the deadline, but the result is in: not a hang
+        assert pool._workers == [worker] and ref in queue.in_flight
+        queue.collect(ref)
+        assert 0 in queue.results and pool.workers_lost == 0
+    finally:
+        pool.shutdown()
+
+
+def test_a_worker_dropped_when_its_result_cannot_be_fetched_is_killed(ray_session, monkeypatch):
+    """Dropped alive (a fetch that timed out), it would hold its CPUs and GPUs for nothing."""
+    import time
+
+    from ray.exceptions import GetTimeoutError
+
+    from pizero_ray.trainer.options import PoolOptions
+
+    _fake_workers(monkeypatch)
+    pool, theta_ref = _ready_pool(ray_session, PoolOptions(workers=1, compile_cache=None))
+    try:
+        queue, worker, ref = _one_chunk_in_flight(ray_session, pool, theta_ref, deadline=time.time() + 60)
+        real_get = ray_session.get
+
+        def get(refs, *args, **kwargs):
+            if refs == ref:
+                raise GetTimeoutError("the fetch timed out")
+            return real_get(refs, *args, **kwargs)
+
+        monkeypatch.setattr(ray_session, "get", get)
+        queue.collect(ref)
+        monkeypatch.setattr(ray_session, "get", real_get)
+        assert pool._workers == [] and list(queue.pending) == [0] + list(range(CONFIG.num_chunks))
+        _wait_until_dead(ray_session, worker.actor)
+    finally:
+        pool.shutdown()
 
 
 def _never(index):
