@@ -15,6 +15,7 @@ from pizero_ray.cli import experiments, reports, training
 from pizero_ray.cli.arguments import UsageError
 from pizero_ray.config import ConfigError
 from pizero_ray.storage.checkpoints import CheckpointError
+from pizero_ray.storage.writer_lock import RunDirInUse
 
 
 class Command(NamedTuple):
@@ -53,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return COMMANDS[args.command].run(args)
-    except (ConfigError, UsageError, CheckpointError) as error:
+    except (ConfigError, UsageError, CheckpointError, RunDirInUse) as error:
         print(f"pizero: error: {error}", file=sys.stderr)
         return 2
 

@@ -13,6 +13,7 @@ from pizero_ray.cli.arguments import UsageError, add_settings, existing_run, giv
 from pizero_ray.config import Config, build_config
 from pizero_ray.presets import PRESETS
 from pizero_ray.storage import run_dir as rundir
+from pizero_ray.storage import writer_lock
 
 DEFAULT_ITERATIONS = 400
 
@@ -120,9 +121,12 @@ def cmd_train(args) -> int:
     # With a wall-clock budget and no iteration target, the budget alone says when to stop.
     iterations = args.iterations or (None if args.minutes else DEFAULT_ITERATIONS)
     options = run_options(args, iterations)
-    rundir.write_config(run_path, config)  # the last steps before training: all input was valid
-    rundir.write_evaluation_schedule(run_path, options.evaluation_schedule())
-    return _run_training(run_path, config, options, args.no_progress)
+    with writer_lock.hold(run_path):  # one writer per run dir, from its first file on
+        if (run_path / rundir.CONFIG_FILE).exists():  # another `pizero train` got there first
+            raise UsageError(f"run dir {run_path} already holds a run; continue it with: pizero resume {run_path}")
+        rundir.write_config(run_path, config)  # the last steps before training: all input was valid
+        rundir.write_evaluation_schedule(run_path, options.evaluation_schedule())
+        return _run_training(run_path, config, options, args.no_progress)
 
 
 def cmd_resume(args) -> int:
@@ -134,8 +138,9 @@ def cmd_resume(args) -> int:
     # The learning curve goes on as the run dir says unless an --eval-* option is given.
     kept = rundir.read_evaluation_schedule(run_path)
     options = dataclasses.replace(run_options(args, args.iterations, kept), restart=args.restart)
-    rundir.write_evaluation_schedule(run_path, options.evaluation_schedule())
-    return _run_training(run_path, config, options, args.no_progress)
+    with writer_lock.hold(run_path):  # refused, before writing anything, while another process trains the run
+        rundir.write_evaluation_schedule(run_path, options.evaluation_schedule())
+        return _run_training(run_path, config, options, args.no_progress)
 
 
 def cmd_chaos(args) -> int:

@@ -27,7 +27,7 @@ import numpy as np
 
 from pizero_ray import methods
 from pizero_ray.config import Config
-from pizero_ray.storage import checkpoints, runs, tensorboard
+from pizero_ray.storage import checkpoints, runs, tensorboard, writer_lock
 from pizero_ray.storage import run_dir as rundir
 from pizero_ray.trainer import compile_cache
 from pizero_ray.trainer.options import RunOptions
@@ -252,8 +252,14 @@ def train(
     Returns {"iteration", "parameter_hash", "stopped_by", "out_of_time",
     "workers_killed"}: ``stopped_by`` names the signal that interrupted
     training (after a checkpoint was saved), or None; ``out_of_time`` says
-    the wall-clock budget ended it.
+    the wall-clock budget ended it. Refuses (``writer_lock.RunDirInUse``) a
+    run dir that another live process is writing.
     """
+    with writer_lock.hold(run_path):
+        return _train(run_path, config, options, on_iteration, on_start)
+
+
+def _train(run_path: Path, config: Config, options: RunOptions, on_iteration, on_start) -> dict:
     from pizero_ray.trainer import ray_setup
 
     if config.gradient_trained:
