@@ -18,11 +18,11 @@ TSP10, in two modes: ``exact`` (full-rank Gaussian noise) and ``low_rank``
   report           the measurements as one JSON object, or a table
   runner           one bench run of a plan (`run`)
 
-Speed targets live here, not in timed tests.
+  stub_workers     Ray actors that import no JAX and answer chunks after a modelled delay: the scale model's
+                   and the fault tests' workers
+  scale            `pizero bench --scale`: the trainer's own costs from 1 to 512 workers and up to 100M
+                   parameters, measured where this machine allows, modelled beyond
+
+Speed targets live here, not in timed tests. The package imports nothing itself: a stub worker's process
+loads numpy and Ray, not JAX.
 """
-
-from pizero_ray.bench.plans import FULL, LOW_RANK, QUICK, BenchPlan, bench_config
-from pizero_ray.bench.report import table, to_json
-from pizero_ray.bench.runner import run
-
-__all__ = ["FULL", "LOW_RANK", "QUICK", "BenchPlan", "bench_config", "run", "table", "to_json"]

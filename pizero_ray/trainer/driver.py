@@ -68,7 +68,7 @@ class _StopRequest:
 class _Run:
     """One training session: the ES state and strategy, the pool, and where the run is written."""
 
-    def __init__(self, run_path: Path, config: Config, options: RunOptions):
+    def __init__(self, run_path: Path, config: Config, options: RunOptions, worker_factory=None):
         from pizero_ray.agent import episodes
 
         self.config, self.options = config, options
@@ -84,7 +84,7 @@ class _Run:
             agent = methods.acting_agent(config, eval_env, self.method if eval_env is env else None)
             self.held_out = episodes.make_scorer(agent, eval_env, self.layout.unravel, options.eval_episodes)
         # The gradient-trained baselines learn in this process; ES farms its population out to the pool.
-        self.pool = None if config.gradient_trained else WorkerPool(config, options.pool)
+        self.pool = None if config.gradient_trained else WorkerPool(config, options.pool, worker_factory)
         self.writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)
         self.log = rundir.MetricsLog(run_path)
         self.events = tensorboard.EventLog(run_path)  # mirrors the metrics for tensorboard --logdir
@@ -244,6 +244,7 @@ def train(
     options: RunOptions,
     on_iteration: Callable[[dict], None] | None = None,
     on_start: Callable[[dict], None] | None = None,
+    worker_factory=None,
 ) -> dict:
     """Trains until ``options.iterations`` iterations are done, resuming from the newest good checkpoint.
 
@@ -253,13 +254,14 @@ def train(
     "workers_killed"}: ``stopped_by`` names the signal that interrupted
     training (after a checkpoint was saved), or None; ``out_of_time`` says
     the wall-clock budget ended it. Refuses (``writer_lock.RunDirInUse``) a
-    run dir that another live process is writing.
+    run dir that another live process is writing. ``worker_factory`` (a
+    ``workers.WorkerFactory``) replaces the rollout workers (the scale model's stubs).
     """
     with writer_lock.hold(run_path):
-        return _train(run_path, config, options, on_iteration, on_start)
+        return _train(run_path, config, options, on_iteration, on_start, worker_factory)
 
 
-def _train(run_path: Path, config: Config, options: RunOptions, on_iteration, on_start) -> dict:
+def _train(run_path: Path, config: Config, options: RunOptions, on_iteration, on_start, worker_factory) -> dict:
     from pizero_ray.trainer import ray_setup
 
     if config.gradient_trained:
@@ -267,7 +269,7 @@ def _train(run_path: Path, config: Config, options: RunOptions, on_iteration, on
     else:  # Ray first: it forks its processes before JAX starts its threads
         connection = ray_setup.init(options.address)
     compile_cache.enable(options.pool.compile_cache)
-    run = _Run(run_path, config, options)
+    run = _Run(run_path, config, options, worker_factory)
     if on_start:
         on_start({"connection": connection, "start_iteration": run.start_iteration, "parameters": run.layout.size,
                   "workers": options.pool.workers if run.pool else 0})

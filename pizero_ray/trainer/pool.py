@@ -27,6 +27,7 @@ from pizero_ray.config import Config
 from pizero_ray.trainer.options import PoolOptions
 
 POLL_S = 0.5  # how often the driver looks up from ray.wait (signals, deadlines)
+EXPIRY_CHECK_S = 0.1  # how often it looks for hung workers (deadlines are chunk timeouts: seconds or more)
 MAX_CHUNK_FAILURES = 5  # a chunk that kills this many workers is a bug, not bad luck
 MAX_STARTUP_FAILURES = 3  # consecutive actors dying in __init__ means they never will start
 
@@ -109,9 +110,11 @@ class IterationResult:
 
 
 class WorkerPool:
-    def __init__(self, config: Config, options: PoolOptions):
+    def __init__(self, config: Config, options: PoolOptions, factory=None):
+        """``factory``: a ``workers.WorkerFactory`` (stub workers, say); None for ``RolloutWorker`` actors."""
         self._config = config
         self._options = options
+        self._factory = factory
         self._config_json = config.to_json()
         self._workers: list[_Worker] = []
         self._stale: dict = {}  # refs of chunks dropped by min_fraction -> (their worker, deadline)
@@ -139,15 +142,16 @@ class WorkerPool:
         if worker.info.get("node_id") == ray.get_runtime_context().get_node_id():
             os.kill(worker.info["pid"], signal.SIGKILL)
         else:
-            ray.kill(worker.actor, no_restart=True)
+            self._stop(worker.actor)
         self.kills += 1
 
     def top_up(self) -> None:
         """Asks Ray for actors up to ``target_workers``; they start when the cluster has room."""
         from pizero_ray.trainer import workers
 
+        start = self._factory.start if self._factory else workers.start_worker
         while len(self._workers) < self._options.target_workers:
-            actor = workers.start_worker(
+            actor = start(
                 self._config_json, self._options.cpus_per_worker, self._options.gpus_per_worker,
                 self._options.compile_cache, dict(self._options.worker_resources), self._options.pin_cores,
                 keep_noise=not self._options.gradient_on_driver(self._config.perturbation_rank),
@@ -186,13 +190,16 @@ class WorkerPool:
             if worker not in self._workers:  # gone (killed above, or died): nothing to wait for
                 del self._stale[ref]
 
-    def _drop(self, worker: _Worker, kill: bool) -> None:
-        import ray
+    def _stop(self, actor) -> None:
+        from pizero_ray.trainer import workers
 
+        (self._factory.stop if self._factory else workers.stop_worker)(actor)
+
+    def _drop(self, worker: _Worker, kill: bool) -> None:
         if worker in self._workers:
             self._workers.remove(worker)
         if kill:
-            ray.kill(worker.actor, no_restart=True)
+            self._stop(worker.actor)
 
     def lose(self, worker: _Worker) -> None:
         """A ready worker died or hung: drop it (killed, so a hung or half-dead actor frees its resources), and
@@ -234,10 +241,10 @@ class WorkerPool:
         self, theta_ref, seed: int, iteration: int = 0, should_stop: Callable[[], bool] = lambda: False
     ) -> IterationResult:
         """Scores of every chunk of the population (or ``min_fraction`` of them) at ``theta_ref``."""
-        import ray
 
         self._traffic = Traffic()
         queue = _ChunkQueue(self, theta_ref, seed, iteration, self._traffic)
+        checked = 0.0
         while not queue.enough():
             if should_stop():
                 raise Interrupted()
@@ -246,8 +253,7 @@ class WorkerPool:
             starting = {w.ready_ref: w for w in self._workers if not w.ready}
             pinged = {w.ping_ref: w for w in self._workers if w.ping_ref is not None}
             waitable = list(queue.in_flight) + list(starting) + list(pinged) + list(self._stale)
-            ready_refs, _ = ray.wait(waitable, num_returns=1, timeout=POLL_S) if waitable else ([], [])
-            for ref in ready_refs:
+            for ref in _all_ready(waitable):
                 if ref in starting:
                     self._started(starting[ref], ref)
                 elif ref in pinged:
@@ -257,10 +263,12 @@ class WorkerPool:
                 else:
                     queue.collect(ref)
             now = time.time()
-            self._expire_stale(now)
-            self._expire_pings(now)
-            queue.expire(now)
-            self._check_workers_start(now)
+            if now >= checked + EXPIRY_CHECK_S:  # deadlines are seconds apart: not at every result
+                checked = now
+                self._expire_stale(now)
+                self._expire_pings(now)
+                queue.expire(now)
+                self._check_workers_start(now)
         # min_fraction: stragglers finish in the background and are ignored, by their deadlines.
         for ref, (_, worker, deadline) in queue.in_flight.items():
             self._stale[ref] = (worker, deadline)
@@ -352,6 +360,23 @@ class WorkerPool:
                 except RayError:
                     self.lose(worker)  # the worker died: the part is computed elsewhere
         return parts
+
+
+def _all_ready(refs: list) -> list:
+    """The refs that are ready: waits up to POLL_S for one, then takes every other that is ready too.
+
+    One result per pass would cost a pass (dispatch, the wait lists, the
+    deadline checks) per chunk: with hundreds of workers in flight that pass
+    grows with them, and thousands of chunks made the driver's time quadratic.
+    """
+    import ray
+
+    if not refs:
+        return []
+    ready, rest = ray.wait(refs, num_returns=1, timeout=POLL_S)
+    if ready and rest:
+        ready += ray.wait(rest, num_returns=len(rest), timeout=0)[0]
+    return ready
 
 
 class _ChunkQueue:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import time
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 import ray
@@ -99,3 +100,16 @@ def _gpu_env(num_gpus: float) -> dict | None:
 def worker_devices(num_cpus: float, num_gpus: float) -> int:
     """How many chunks a worker runs at once: one per whole CPU (CPU workers) or per whole GPU."""
     return max(1, int(num_gpus if num_gpus > 0 else num_cpus))
+
+
+def stop_worker(actor) -> None:
+    """Ends a worker actor (it is not restarted)."""
+    ray.kill(actor, no_restart=True)
+
+
+class WorkerFactory(NamedTuple):
+    """How a pool starts and stops its workers, if not as ``RolloutWorker`` actors (``start_worker``,
+    ``stop_worker``): the scale model's stub workers (``pizero_ray.bench.stub_workers``) come this way."""
+
+    start: Callable[..., Any]  # start_worker's arguments -> a handle with ready/score_chunk/gradient_part .remote
+    stop: Callable[[Any], None]

@@ -1,6 +1,6 @@
 """The bench's agent and plans."""
 
-from pizero_ray import bench
+from pizero_ray.bench import plans as bench
 
 
 def test_bench_config_is_the_papers_agent():

@@ -1,0 +1,37 @@
+"""Stub workers: the real driver and pool run against them, and the result does not depend on how they stand in."""
+
+import numpy as np
+
+from pizero_ray.bench.stub_workers import StubWorkers, stub_scores
+from pizero_ray.config import build_config
+from pizero_ray.storage import run_dir
+from pizero_ray.trainer import driver
+
+CONFIG = build_config("tiny", population=16, chunk_size=2, planner="none")  # 8 chunks
+
+
+def _train(path, stubs, workers):
+    run_dir.write_config(path, CONFIG)
+    options = driver.RunOptions.create(iterations=3, workers=workers, checkpoint_every=0, gradient_on="driver",
+                                       compile_cache="none")
+    try:
+        result = driver.train(path, CONFIG, options, worker_factory=stubs.factory())
+    finally:
+        stubs.shutdown()
+    return result, [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
+
+
+def test_scores_are_a_function_of_seed_and_pairs_and_untied():
+    scores = stub_scores(7, 4, 3)
+    np.testing.assert_array_equal(scores, stub_scores(7, 4, 3))
+    assert scores.shape == (3, 2) and len(np.unique(scores)) == 6
+    assert not np.array_equal(scores, stub_scores(7, 6, 3)) and not np.array_equal(scores, stub_scores(8, 4, 3))
+
+
+def test_workers_in_processes_of_their_own_or_standing_in_give_the_same_parameters(ray_session, tmp_path):
+    own, own_rows = _train(tmp_path / "own", StubWorkers(CONFIG.chunk_size, 100, 0.01), workers=2)
+    shared, shared_rows = _train(tmp_path / "shared", StubWorkers(CONFIG.chunk_size, 100, 0.01, processes=2),
+                                 workers=6)
+    assert own["parameter_hash"] == shared["parameter_hash"]
+    assert all(row["pairs_evaluated"] == CONFIG.population for row in own_rows + shared_rows)
+    assert shared_rows[-1]["workers"] == 6  # six workers on two processes
