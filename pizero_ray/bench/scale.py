@@ -114,7 +114,173 @@ def sweep(points, progress=print) -> list[dict]:
 
 
 def default_points() -> list[tuple[int, int, str]]:
-    """Every (workers, chunks) with the parts on the driver; with parts on the workers, up to 512 chunks (4,096
-    parts of the bench agent's 54,279 floats would be 0.9 GB an iteration through this machine's stores)."""
-    points = [(w, c, "a_parts_on_driver") for w in SWEEP_WORKERS for c in SWEEP_CHUNKS]
-    return points + [(w, c, "a_parts_on_workers") for w in SWEEP_WORKERS for c in SWEEP_CHUNKS if c <= 512]
+    """The sweep within about ten minutes here. With the parts on the driver: every worker count at 64 and 512
+    chunks, and 4,096 chunks at 8 and 512 workers (about a minute each). With the parts on the workers: up to
+    512 chunks (4,096 parts of 54,279 floats would be 0.9 GB an iteration through this machine's stores)."""
+    points = [(w, c, "a_parts_on_driver") for w in SWEEP_WORKERS for c in SWEEP_CHUNKS[:2]]
+    points += [(w, SWEEP_CHUNKS[2], "a_parts_on_driver") for w in (8, 512)]
+    return points + [(w, c, "a_parts_on_workers") for w in (1, 32, 512) for c in SWEEP_CHUNKS[:2]]
+
+
+# ---------------------------------------------------------------- faults at scale
+
+FAULT_WORKERS = 96  # stub processes of their own (a kill ends a real process): about 6 GB of this machine's 24
+FAULT_ITERATIONS = 5
+FAULT_CHUNKS = 2 * FAULT_WORKERS
+
+
+def faults(workers: int = FAULT_WORKERS, iterations: int = FAULT_ITERATIONS, progress=print) -> dict:
+    """A tenth of the workers SIGKILLed mid-iteration, every iteration, against the same run without kills.
+
+    Stub workers with processes of their own, the parts on the driver, and a
+    modelled rollout of ``IDEAL_COMPUTE_S``: the final parameters must be the
+    clean run's, and the difference in iteration time is what the kills cost.
+    """
+    from pizero_ray.trainer.chaos import kill_schedule
+
+    kills = max(1, workers // 10)
+    schedule = frozenset((it, chunk) for it in range(iterations)  # the same chunks in both runs' iterations
+                         for _, chunk in kill_schedule(it, kills, 1, FAULT_CHUNKS))
+    runs = {}
+    for name, planned in (("clean", frozenset()), ("killed", schedule)):
+        progress(f"scale: faults, {workers} workers, {name}")
+        runs[name] = _fault_run(workers, iterations, planned)
+    return {"workers": workers, "chunks": FAULT_CHUNKS, "iterations": iterations, "kills_per_iteration": kills,
+            "identical": runs["clean"]["parameter_hash"] == runs["killed"]["parameter_hash"], **{
+                f"{name}_{key}": value for name, run in runs.items() for key, value in run.items()}}
+
+
+def _fault_run(workers: int, iterations: int, schedule: frozenset) -> dict:
+    import dataclasses
+
+    from pizero_ray.bench.plans import bench_config
+    from pizero_ray.bench.stub_workers import StubWorkers
+    from pizero_ray.storage import run_dir
+    from pizero_ray.trainer import driver
+
+    config = bench_config(FAULT_CHUNKS * PAIRS_PER_CHUNK, PAIRS_PER_CHUNK, perturbation_rank=1)
+    stubs = StubWorkers(PAIRS_PER_CHUNK, _parameters(config), chunk_delay_s(workers, FAULT_CHUNKS))
+    with tempfile.TemporaryDirectory(prefix="pizero-faults-") as tmp:
+        path = Path(tmp)
+        run_dir.write_config(path, config)
+        options = driver.RunOptions.create(iterations=iterations + 1, workers=workers, checkpoint_every=0,
+                                           gradient_on="driver", compile_cache="none")
+        shifted = frozenset((it + 1, chunk) for it, chunk in schedule)  # iteration 0 starts the workers: not killed
+        options = dataclasses.replace(options, pool=dataclasses.replace(options.pool, kill_schedule=shifted))
+        try:
+            result = driver.train(path, config, options, worker_factory=stubs.factory())
+        finally:
+            stubs.shutdown()
+        rows = [row for row in run_dir.read_metrics(path) if row["iteration"] > 1]
+    return {"parameter_hash": result["parameter_hash"], "workers_killed": result["workers_killed"],
+            "iteration_s": statistics.median(row["iteration_time_s"] for row in rows),
+            "max_iteration_s": max(row["iteration_time_s"] for row in rows),
+            "workers_lost": sum(row["workers_lost"] for row in rows),
+            "requeued_chunks": sum(row["requeued_chunks"] for row in rows)}
+
+
+# ---------------------------------------------------------------- the whole run: measure, then model
+
+COST_PARAMETERS = (54_279, 1_000_000, 10_000_000, 100_000_000)  # the bench agent's, then 1M to 100M
+PART_PAIRS = 32  # a chunk's pairs where its part is timed; the model scales the part with its chunk's pairs
+MODEL_WORKERS = (8, 64, 512)
+MODEL_PAIRS_PER_CHUNK = (1024, 32_768)  # a GPU worker's device call: a thousand pairs (issue 46), and 32 times that
+MODEL_CHUNKS_PER_WORKER = 2
+GPU_RATE = 1_000_000  # agent-steps/s per GPU worker: issue 46's target
+MODEL_DESIGNS = ("a_parts_on_driver", "a_parts_on_workers", "a_node_sums", "b_replayed")
+SATURATION_PAIRS = (32, 1024, 32_768)
+
+
+def run(progress=print, points=None) -> dict:
+    """The scale model's measurements on a two-node Ray cluster on this machine, and the model built on them."""
+    import ray
+    from ray.cluster_utils import Cluster
+
+    from pizero_ray.bench import scale_costs
+
+    cluster = Cluster(initialize_head=True, head_node_args={
+        "num_cpus": 2, "object_store_memory": 2 * 2**30, "include_dashboard": False})
+    cluster.add_node(num_cpus=0, object_store_memory=2 * 2**30, resources={"scale_remote": 1})
+    ray.init(address=cluster.address, logging_level="ERROR")
+    try:
+        progress("scale: Ray's per-call costs")
+        calls = scale_costs.call_costs()
+        progress("scale: per-byte costs, 54k to 100M parameters")
+        transfers = scale_costs.byte_costs(COST_PARAMETERS, {"scale_remote": 1})
+        progress("scale: the driver's update, 54k to 100M parameters")
+        updates = scale_costs.update_costs(COST_PARAMETERS, PART_PAIRS)
+        rows = sweep(points if points is not None else default_points(), progress)
+        fault_result = faults(progress=progress) if points is None else None
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+    measured = {"calls": calls, "transfers": transfers, "updates": updates, "ideal_compute_s": IDEAL_COMPUTE_S,
+                "pairs_per_chunk": PAIRS_PER_CHUNK, "max_processes": MAX_PROCESSES}
+    return {"measured": measured, "faults": fault_result, **model_rows(measured, rows)}
+
+
+def unit_costs(measured: dict, rows: list[dict], design: str):
+    """``scale_model.UnitCosts`` from the measurements: the driver's chunk handling from the largest sweep point
+    with the parts on the driver (its CPU seconds outside the update, per chunk: with the parts on the workers
+    the update's time is mostly waiting), rates from the largest transfers."""
+    from pizero_ray.bench.scale_model import UnitCosts
+
+    on_driver = [row for row in rows if row["design"] == "a_parts_on_driver"]
+    largest = max(on_driver, key=lambda row: (row["chunks"], row["workers"]))
+    per_chunk = (largest["driver_s"] - largest["update_s"]) / largest["chunks"]
+    big = max(measured["transfers"], key=lambda row: row["bytes"])
+    rank = "part_s_rank_1" if design in ("a_parts_on_driver", "b_replayed") else "part_s_rank_0"
+    parts = {row["parameters"]: row[rank] for row in measured["updates"] if rank in row}
+    return UnitCosts(per_chunk, big["bytes"] / big["to_other_node_s"], big["bytes"] / big["put_s"],
+                     {d: s / PART_PAIRS for d, s in parts.items()},  # per pair: the model scales it by its chunk
+                     {row["parameters"]: row["adam_s"] for row in measured["updates"]},
+                     {row["parameters"]: row["add_part_s"] for row in measured["updates"]})
+
+
+def model_rows(measured: dict, rows: list[dict]) -> dict:
+    """The measured rows, then the model's: every design at ``MODEL_WORKERS`` x ``COST_PARAMETERS``."""
+    from pizero_ray.bench import scale_model
+
+    modelled, saturation = [], []
+    for design in MODEL_DESIGNS:
+        # Replayed updates regenerate every part on every worker: modelled at rank 1 (the default's noise), the
+        # cheaper of the two.
+        costs = unit_costs(measured, rows, design)
+        for pairs in MODEL_PAIRS_PER_CHUNK:
+            for workers in MODEL_WORKERS:
+                for parameters in COST_PARAMETERS:
+                    point = (workers, MODEL_CHUNKS_PER_WORKER * workers, pairs, parameters, GPU_RATE)
+                    row = scale_model.iteration(costs, design, *point)
+                    if design == "b_replayed":
+                        row["replay_speedup_to_beat_node_sums"] = scale_model.replay_speedup_to_beat(
+                            costs, "a_node_sums", *point)
+                    modelled.append(row)
+    costs = unit_costs(measured, rows, "a_parts_on_driver")
+    for pairs in SATURATION_PAIRS:
+        saturation.append({"pairs_per_chunk": pairs, "rate_per_worker": GPU_RATE,
+                           "workers": scale_model.saturation_workers(costs, pairs, GPU_RATE)})
+    return {"rows": rows + modelled, "driver_per_chunk_s": costs.driver_per_chunk_s, "saturation": saturation}
+
+
+def table(result: dict) -> str:
+    """The run in lines: unit costs, the measured points, the model at 512 workers, where the driver saturates."""
+    measured = result["measured"]
+    lines = [f"pizero bench --scale: a call {measured['calls']['call_in_flight_s'] * 1e3:.3f} ms in flight, "
+             f"{measured['calls']['call_round_trip_s'] * 1e3:.3f} ms a round trip; the driver "
+             f"{result['driver_per_chunk_s'] * 1e3:.3f} ms a chunk"]
+    for row in result["rows"]:
+        if row["source"] == "measured" or row["workers"] == max(MODEL_WORKERS):
+            pairs = row.get("pairs_per_chunk", PAIRS_PER_CHUNK)
+            lines.append(f"  {row['source']:<8} {row['design']:<19} workers {row['workers']:>4} chunks "
+                         f"{row['chunks']:>5} x {pairs:>6} pairs D {row['parameters']:>11,} "
+                         f"driver {row['driver_s']:9.3f} s "
+                         f"iteration {row['iteration_s']:8.3f} s efficiency {row['efficiency']:.3f}")
+    if result.get("faults"):
+        f = result["faults"]
+        lines.append(f"  faults: {f['kills_per_iteration']} of {f['workers']} workers killed in each of "
+                     f"{f['iterations']} iterations: identical parameters {f['identical']}, iteration "
+                     f"{f['killed_iteration_s']:.3f} s against {f['clean_iteration_s']:.3f} s without kills")
+    for point in result["saturation"]:
+        lines.append(f"  the driver saturates at {point['workers']:,.0f} workers with {point['pairs_per_chunk']:,} "
+                     f"pairs a chunk at {point['rate_per_worker']:,} agent-steps/s each")
+    return "\n".join(lines)

@@ -98,12 +98,14 @@ def _byte_row(remote, size: int) -> dict:
 
 
 def _square_layout(parameters: int, rank: int):
-    """A Perturbation of ``parameters`` parameters as square weight matrices (at most 2,048 wide) and a bias."""
+    """A Perturbation of ``parameters`` parameters laid out as a network's are: weight matrices (square, at most
+    2,048 wide, the remainder one more matrix of full rows) and a bias under one row (biases keep full noise)."""
     from pizero_ray import es
 
     side = min(2048, int(np.sqrt(parameters)))
-    matrices = max(1, parameters // (side * side))
-    leaves = ((side, side),) * matrices + ((max(1, parameters - matrices * side * side),),)
+    matrices, rest = divmod(parameters, side * side)
+    leaves = ((side, side),) * matrices + (((rest // side, side),) if rest >= side else ())
+    leaves += ((rest % side,),) if rest % side else ()
     return es.Perturbation(leaves, rank)
 
 

@@ -62,6 +62,9 @@ def add_inspect_parser(sub) -> None:
 def add_bench_parser(sub) -> None:
     bench = sub.add_parser("bench", help="measure rollout, trainer and driver speed (TSP10, paper agent)")
     bench.add_argument("--quick", action="store_true", help="a reduced version (population 64), about a minute")
+    bench.add_argument("--scale", action="store_true",
+                       help="the trainer at scale instead: the real driver against stub workers (1 to 512), the "
+                            "unit costs, and the model built on them (about ten minutes)")
     _add_json_option(bench)
     bench.add_argument("--devices", type=positive_int, metavar="N",
                        help="JAX CPU devices the in-process rollout deals its chunks over (default: one per core)")
@@ -130,9 +133,20 @@ def cmd_render(args) -> int:
     return 0
 
 
+def _bench_scale(args) -> int:
+    from pizero_ray.bench import scale
+
+    result = scale.run(progress=lambda text: print(f"pizero bench: {text}", file=sys.stderr, flush=True))
+    print(json.dumps(result) if args.json else scale.table(result))
+    return 0
+
+
 def cmd_bench(args) -> int:
     from pizero_ray.cli import bench
     from pizero_ray.trainer import local_devices
+
+    if args.scale:
+        return _bench_scale(args)
 
     local_devices.configure_cpu_devices(args.devices or local_devices.cpu_count())  # before JAX starts
     plan = bench.QUICK if args.quick else bench.FULL

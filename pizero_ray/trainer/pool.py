@@ -404,22 +404,35 @@ class _ChunkQueue:
         return len(self.results) >= self.needed
 
     def dispatch(self) -> None:
-        """Hands pending chunks to ready workers, up to ``in_flight_per_worker`` per device."""
+        """Hands pending chunks to ready workers, one each a round, up to ``in_flight_per_worker`` per device.
+
+        Round by round, so that every idle worker has a chunk before any worker
+        gets a second: depth first, 64 chunks on 128 workers went to 32 of them,
+        two each, and took two rollouts' time instead of one.
+        """
         options = self.pool._options
-        for worker in self.pool._workers:
-            devices = worker.info.get("devices", 1)  # chunks the worker runs at once
-            while (worker.ready and worker.ping_ref is None and self.pending
-                   and worker.in_flight < options.in_flight_per_worker * devices):
-                index = self.pending.popleft()
-                ref = worker.actor.score_chunk.remote(self.theta_ref, self.seed, index * self.chunk)
-                self._count_dispatch(worker, index)
-                # The deadline allows for the chunks queued ahead of this one on the worker.
-                deadline = time.time() + options.chunk_timeout_s * (worker.in_flight // devices + 1)
-                self.in_flight[ref] = (index, worker, deadline)
-                worker.in_flight += 1
-                if (self.iteration, index) in options.kill_schedule - self.pool._kills_done:
-                    self.pool._kills_done.add((self.iteration, index))
-                    self.pool.kill_process(worker)
+        open_workers = [w for w in self.pool._workers if w.ready and w.ping_ref is None]
+        while self.pending and open_workers:
+            open_workers = [w for w in open_workers
+                            if w.in_flight < options.in_flight_per_worker * w.info.get("devices", 1)]
+            for worker in open_workers:
+                if not self.pending:
+                    break
+                self._hand(worker, self.pending.popleft())
+
+    def _hand(self, worker: _Worker, index: int) -> None:
+        """Chunk ``index`` to ``worker``, with its deadline (and, in a chaos run, the kill scheduled for it)."""
+        options = self.pool._options
+        devices = worker.info.get("devices", 1)  # chunks the worker runs at once
+        ref = worker.actor.score_chunk.remote(self.theta_ref, self.seed, index * self.chunk)
+        self._count_dispatch(worker, index)
+        # The deadline allows for the chunks queued ahead of this one on the worker.
+        deadline = time.time() + options.chunk_timeout_s * (worker.in_flight // devices + 1)
+        self.in_flight[ref] = (index, worker, deadline)
+        worker.in_flight += 1
+        if (self.iteration, index) in options.kill_schedule - self.pool._kills_done:
+            self.pool._kills_done.add((self.iteration, index))
+            self.pool.kill_process(worker)
 
     def _count_dispatch(self, worker: _Worker, index: int) -> None:
         """The bytes a chunk sends out: its call, and the parameters if its worker's node has not fetched them yet."""

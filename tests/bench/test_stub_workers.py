@@ -10,12 +10,15 @@ from pizero_ray.trainer import driver
 CONFIG = build_config("tiny", population=16, chunk_size=2, planner="none")  # 8 chunks
 
 
-def _train(path, stubs, workers):
-    run_dir.write_config(path, CONFIG)
-    options = driver.RunOptions.create(iterations=3, workers=workers, checkpoint_every=0, gradient_on="driver",
-                                       compile_cache="none")
+def _train(path, stubs, workers, config=CONFIG, iterations=3, kill_schedule=frozenset()):
+    import dataclasses
+
+    run_dir.write_config(path, config)
+    options = driver.RunOptions.create(iterations=iterations, workers=workers, checkpoint_every=0,
+                                       gradient_on="driver", compile_cache="none")
+    options = dataclasses.replace(options, pool=dataclasses.replace(options.pool, kill_schedule=kill_schedule))
     try:
-        result = driver.train(path, CONFIG, options, worker_factory=stubs.factory())
+        result = driver.train(path, config, options, worker_factory=stubs.factory())
     finally:
         stubs.shutdown()
     return result, [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
@@ -35,3 +38,15 @@ def test_workers_in_processes_of_their_own_or_standing_in_give_the_same_paramete
     assert own["parameter_hash"] == shared["parameter_hash"]
     assert all(row["pairs_evaluated"] == CONFIG.population for row in own_rows + shared_rows)
     assert shared_rows[-1]["workers"] == 6  # six workers on two processes
+
+
+def test_a_tenth_of_the_workers_killed_in_every_iteration_changes_nothing(ray_session, tmp_path):
+    """Twenty stub workers, each in a process of its own; in each of three iterations two of them are SIGKILLed
+    right after taking a chunk (`bench --scale` does this with 96 workers and times it)."""
+    config = build_config("tiny", population=80, chunk_size=2, planner="none")  # 40 chunks
+    clean, _ = _train(tmp_path / "clean", StubWorkers(2, 100, 0.02), 20, config)
+    schedule = frozenset((iteration, chunk) for iteration in range(3) for chunk in (5, 23))
+    killed, rows = _train(tmp_path / "killed", StubWorkers(2, 100, 0.02), 20, config, kill_schedule=schedule)
+    assert killed["workers_killed"] == 6 and sum(row["workers_lost"] for row in rows) == 6
+    assert all(row["pairs_evaluated"] == config.population for row in rows)  # every iteration completed
+    assert killed["parameter_hash"] == clean["parameter_hash"]
