@@ -201,7 +201,7 @@ def run(progress=print, points=None) -> dict:
     cluster = Cluster(initialize_head=True, head_node_args={
         "num_cpus": 2, "object_store_memory": 2 * 2**30, "include_dashboard": False})
     cluster.add_node(num_cpus=0, object_store_memory=2 * 2**30, resources={"scale_remote": 1})
-    ray.init(address=cluster.address, logging_level="ERROR")
+    ray.init(address=cluster.address, logging_level="ERROR", log_to_driver=False)  # stdout is the JSON
     try:
         progress("scale: Ray's per-call costs")
         calls = scale_costs.call_costs()
