@@ -30,6 +30,11 @@ def plot_measured(rows: list[dict], out: Path) -> None:
     figure, axes = plt.subplots(1, 2, figsize=SIZE_IN, dpi=DPI)
     for axis, design in zip(axes, ("a_parts_on_driver", "a_parts_on_workers")):
         points = [row for row in rows if row["source"] == "measured" and row["design"] == design]
+        batched = [row for row in rows if row["source"] == "measured" and row["design"] == design + "_8_per_call"]
+        for row in batched:
+            axis.plot([row["chunks"]], [row["driver_s"]], "k*", markersize=12)
+        if batched:
+            axis.plot([], [], "k*", label="8 chunks a call")
         for workers in sorted({row["workers"] for row in points}):
             line = sorted((row for row in points if row["workers"] == workers), key=lambda row: row["chunks"])
             label = f"{workers} workers" + (" (stand-ins)" if line[0]["stand_ins"] else "")

@@ -27,9 +27,10 @@ PAIRS_PER_CHUNK = 2  # small chunks: up to 4,096 of them without the population'
 MAX_PROCESSES = 16  # stub processes at most; more workers stand in on them
 SWEEP_WORKERS = (1, 8, 32, 128, 512)
 SWEEP_CHUNKS = (64, 512, 4096)
-DESIGNS = {  # today's design (a), its two ways of forming the gradient
-    "a_parts_on_driver": {"perturbation_rank": 1, "gradient_on": "driver"},
-    "a_parts_on_workers": {"perturbation_rank": 0, "gradient_on": "workers"},
+DESIGNS = {  # today's design (a), its two ways of forming the gradient, and the first with 8 chunks a call
+    "a_parts_on_driver": {"perturbation_rank": 1, "gradient_on": "driver", "chunks_per_call": 1},
+    "a_parts_on_workers": {"perturbation_rank": 0, "gradient_on": "workers", "chunks_per_call": 1},
+    "a_parts_on_driver_8_per_call": {"perturbation_rank": 1, "gradient_on": "driver", "chunks_per_call": 8},
 }
 MEASURED_ITERATIONS = 4  # the first (workers starting, compiles) is not counted
 
@@ -75,7 +76,8 @@ def sweep_point(workers: int, chunks: int, design: str) -> dict:
         path = Path(tmp)
         run_dir.write_config(path, config)
         options = driver.RunOptions.create(iterations=MEASURED_ITERATIONS, workers=workers, checkpoint_every=0,
-                                           gradient_on=settings["gradient_on"], compile_cache="none")
+                                           gradient_on=settings["gradient_on"], compile_cache="none",
+                                           chunks_per_call=settings["chunks_per_call"])
         try:
             driver.train(path, config, options, on_iteration=on_iteration, worker_factory=stubs.factory())
         finally:
@@ -118,7 +120,8 @@ def default_points() -> list[tuple[int, int, str]]:
     chunks, and 4,096 chunks at 8 and 512 workers (about a minute each). With the parts on the workers: up to
     512 chunks (4,096 parts of 54,279 floats would be 0.9 GB an iteration through this machine's stores)."""
     points = [(w, c, "a_parts_on_driver") for w in SWEEP_WORKERS for c in SWEEP_CHUNKS[:2]]
-    points += [(w, SWEEP_CHUNKS[2], "a_parts_on_driver") for w in (8, 512)]
+    points += [(w, SWEEP_CHUNKS[2], design) for design in ("a_parts_on_driver", "a_parts_on_driver_8_per_call")
+               for w in (8, 512)]
     return points + [(w, c, "a_parts_on_workers") for w in (1, 32, 512) for c in SWEEP_CHUNKS[:2]]
 
 
@@ -193,6 +196,14 @@ SATURATION_PAIRS = (32, 1024, 32_768)
 
 def run(progress=print, points=None) -> dict:
     """The scale model's measurements on a two-node Ray cluster on this machine, and the model built on them."""
+    import contextlib
+    import sys
+
+    with contextlib.redirect_stdout(sys.stderr):  # Ray's own warnings print to stdout: the JSON alone goes there
+        return _run(progress, points)
+
+
+def _run(progress, points) -> dict:
     import ray
     from ray.cluster_utils import Cluster
 
@@ -225,7 +236,7 @@ def unit_costs(measured: dict, rows: list[dict], design: str):
     the update's time is mostly waiting), rates from the largest transfers."""
     from pizero_ray.bench.scale_model import UnitCosts
 
-    on_driver = [row for row in rows if row["design"] == "a_parts_on_driver"]
+    on_driver = [row for row in rows if row["design"] == "a_parts_on_driver"]  # one chunk a call
     largest = max(on_driver, key=lambda row: (row["chunks"], row["workers"]))
     per_chunk = (largest["driver_s"] - largest["update_s"]) / largest["chunks"]
     big = max(measured["transfers"], key=lambda row: row["bytes"])

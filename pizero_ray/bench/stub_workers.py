@@ -52,6 +52,11 @@ class StubWorker:
             await asyncio.sleep(self._delay_s)
         return stub_scores(seed, first_pair, self._chunk_size)
 
+    async def score_chunks(self, theta, seed: int, first_pairs: list[int], stand_in: int = 0) -> list[np.ndarray]:
+        async with self._busy.setdefault(stand_in, asyncio.Lock()):
+            await asyncio.sleep(self._delay_s * len(first_pairs))
+        return [stub_scores(seed, first_pair, self._chunk_size) for first_pair in first_pairs]
+
     async def gradient_part(self, seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
         return np.zeros(self._parameters, np.float32)
 
@@ -70,6 +75,8 @@ class StandIn:
         self.ready = _Call(lambda: actor.ready.remote(stand_in))
         self.score_chunk = _Call(lambda theta, seed, first_pair: actor.score_chunk.remote(
             theta, seed, first_pair, stand_in=stand_in))
+        self.score_chunks = _Call(lambda theta, seed, first_pairs: actor.score_chunks.remote(
+            theta, seed, first_pairs, stand_in=stand_in))
         self.gradient_part = _Call(actor.gradient_part.remote)
 
 

@@ -58,6 +58,10 @@ class PoolOptions:
         help="where each chunk's share of the update is formed: 'workers' (from the noise they kept), 'driver' "
              "(it regenerates the noise; no second round trip), 'auto' (driver for low-rank noise on CPU "
              "workers, else workers); on CPU workers the parameters are the same either way")
+    chunks_per_call: int = setting(
+        1, flag="--chunks-per-call", minimum=1,
+        help="chunks a worker is handed in one call: fewer calls for the driver when an iteration has thousands "
+             "(each chunk is still scored alone: the parameters are the same)")
     worker_start_timeout_s: float = 900.0  # no ready worker for this long: give up
     in_flight_per_worker: int = 2  # per device: keeps a worker busy while its last result travels
     worker_resources: tuple[tuple[str, float], ...] = ()  # custom Ray resources each worker needs

@@ -392,7 +392,7 @@ class _ChunkQueue:
         self.needed = self.num_chunks if options.min_fraction >= 1 else max(
             1, math.ceil(options.min_fraction * self.num_chunks))
         self.pending = deque(range(self.num_chunks))
-        self.in_flight: dict = {}  # ref -> (chunk index, worker, deadline)
+        self.in_flight: dict = {}  # ref -> (chunk indices of the call, worker, deadline)
         self.results: dict[int, np.ndarray] = {}
         self.owners: dict[int, _Worker] = {}  # chunk index -> the worker that evaluated it (it kept the noise)
         self.failures: dict[int, int] = {}
@@ -418,25 +418,32 @@ class _ChunkQueue:
             for worker in open_workers:
                 if not self.pending:
                     break
-                self._hand(worker, self.pending.popleft())
+                count = min(options.chunks_per_call, len(self.pending))
+                self._hand(worker, tuple(self.pending.popleft() for _ in range(count)))
 
-    def _hand(self, worker: _Worker, index: int) -> None:
-        """Chunk ``index`` to ``worker``, with its deadline (and, in a chaos run, the kill scheduled for it)."""
+    def _hand(self, worker: _Worker, indices: tuple[int, ...]) -> None:
+        """Chunks ``indices`` to ``worker`` in one call, with its deadline (and, in a chaos run, the kill
+        scheduled for one of them). One chunk goes as ``score_chunk``, several as ``score_chunks``."""
         options = self.pool._options
-        devices = worker.info.get("devices", 1)  # chunks the worker runs at once
-        ref = worker.actor.score_chunk.remote(self.theta_ref, self.seed, index * self.chunk)
-        self._count_dispatch(worker, index)
-        # The deadline allows for the chunks queued ahead of this one on the worker.
-        deadline = time.time() + options.chunk_timeout_s * (worker.in_flight // devices + 1)
-        self.in_flight[ref] = (index, worker, deadline)
+        devices = worker.info.get("devices", 1)  # calls the worker runs at once
+        firsts = [index * self.chunk for index in indices]
+        if len(indices) == 1:
+            ref = worker.actor.score_chunk.remote(self.theta_ref, self.seed, firsts[0])
+        else:
+            ref = worker.actor.score_chunks.remote(self.theta_ref, self.seed, firsts)
+        self._count_dispatch(worker, firsts[0] if len(indices) == 1 else firsts)
+        # The deadline allows for the calls queued ahead of this one on the worker, and for each chunk in it.
+        deadline = time.time() + options.chunk_timeout_s * len(indices) * (worker.in_flight // devices + 1)
+        self.in_flight[ref] = (indices, worker, deadline)
         worker.in_flight += 1
-        if (self.iteration, index) in options.kill_schedule - self.pool._kills_done:
-            self.pool._kills_done.add((self.iteration, index))
+        scheduled = {(self.iteration, index) for index in indices} & (options.kill_schedule - self.pool._kills_done)
+        if scheduled:
+            self.pool._kills_done.update(scheduled)
             self.pool.kill_process(worker)
 
-    def _count_dispatch(self, worker: _Worker, index: int) -> None:
-        """The bytes a chunk sends out: its call, and the parameters if its worker's node has not fetched them yet."""
-        self.traffic.to_workers += call_bytes(self.theta_ref, self.seed, index * self.chunk)
+    def _count_dispatch(self, worker: _Worker, first_pairs) -> None:
+        """The bytes a call sends out: its arguments, and the parameters if its worker's node has not fetched them."""
+        self.traffic.to_workers += call_bytes(self.theta_ref, self.seed, first_pairs)
         node = worker.info.get("node_id", "?")
         if node not in self.theta_nodes:
             import ray
@@ -447,21 +454,23 @@ class _ChunkQueue:
             self.traffic.to_workers += self._theta_bytes
 
     def collect(self, ref) -> None:
-        """A chunk's result is in: its scores, or its worker died and the chunk goes back on the queue."""
+        """A call's results are in: its chunks' scores, or its worker died and its chunks go back on the queue."""
         import ray
         from ray.exceptions import GetTimeoutError, RayError, RayTaskError
 
-        index, worker, _ = self.in_flight.pop(ref)
+        indices, worker, _ = self.in_flight.pop(ref)
         worker.in_flight -= 1
         try:
-            self.results[index] = ray.get(ref, timeout=self.pool._options.chunk_timeout_s)
+            returned = ray.get(ref, timeout=self.pool._options.chunk_timeout_s)
         except RayTaskError as error:
-            raise TrainingError(f"a worker failed evaluating chunk {index}: {error}") from None
+            raise TrainingError(f"a worker failed evaluating chunks {list(indices)}: {error}") from None
         except (RayError, GetTimeoutError):
-            self._fail(index, worker)  # the worker died (or its node did): the chunk runs elsewhere
+            self._fail(indices, worker)  # the worker died (or its node did): the chunks run elsewhere
             return
-        self.traffic.from_workers += serialized_bytes(self.results[index])
-        self.owners[index] = worker
+        self.traffic.from_workers += serialized_bytes(returned)
+        for index, scores in zip(indices, [returned] if len(indices) == 1 else returned, strict=True):
+            self.results[index] = scores
+            self.owners[index] = worker
         self.nodes.add(worker.info.get("node_id", "?"))
         if worker.first_result_s is None:
             worker.first_result_s = time.time() - worker.created
@@ -475,21 +484,23 @@ class _ChunkQueue:
         if expired:  # a result that is in but not yet collected (one per ray.wait) is no hang
             done, _ = ray.wait(expired, num_returns=len(expired), timeout=0, fetch_local=False)
             for ref in set(expired) - set(done):
-                index, worker, _ = self.in_flight.pop(ref)
-                self._fail(index, worker)
-        for ref, (index, worker, _) in list(self.in_flight.items()):
+                indices, worker, _ = self.in_flight.pop(ref)
+                self._fail(indices, worker)
+        for ref, (indices, worker, _) in list(self.in_flight.items()):
             if worker not in self.pool._workers:  # dropped: its other chunks go back too
                 del self.in_flight[ref]
-                self.pending.appendleft(index)
-                self.requeued += 1
+                self.pending.extendleft(reversed(indices))
+                self.requeued += len(indices)
 
-    def _fail(self, index: int, worker: _Worker) -> None:
-        """Chunk ``index``'s worker died or hung on it: the chunk goes back, first in line; the worker is lost."""
-        self.failures[index] = self.failures.get(index, 0) + 1
-        if self.failures[index] >= MAX_CHUNK_FAILURES:
-            raise TrainingError(f"chunk {index} failed on {self.failures[index]} workers; giving up")
-        self.pending.appendleft(index)
-        self.requeued += 1
+    def _fail(self, indices: tuple[int, ...], worker: _Worker) -> None:
+        """The worker died or hung on the call of chunks ``indices``: they go back, first in line; the worker is
+        lost."""
+        for index in indices:
+            self.failures[index] = self.failures.get(index, 0) + 1
+            if self.failures[index] >= MAX_CHUNK_FAILURES:
+                raise TrainingError(f"chunk {index} failed on {self.failures[index]} workers; giving up")
+        self.pending.extendleft(reversed(indices))
+        self.requeued += len(indices)
         self.pool.lose(worker)
 
     def result(self) -> IterationResult:

@@ -58,6 +58,10 @@ class RolloutWorker:
     def score_chunk(self, theta: np.ndarray, iteration_seed: int, first_pair: int) -> np.ndarray:
         return self._chunks.score(theta, iteration_seed, first_pair)
 
+    def score_chunks(self, theta: np.ndarray, iteration_seed: int, first_pairs: list[int]) -> list[np.ndarray]:
+        """Several chunks in one call (``--chunks-per-call``), one after another; each as ``score_chunk``."""
+        return [self._chunks.score(theta, iteration_seed, first_pair) for first_pair in first_pairs]
+
     def gradient_part(self, iteration_seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
         """The chunk's share of the pseudo-gradient, from the noise kept while evaluating it."""
         return self._chunks.gradient_part(iteration_seed, first_pair, weights)

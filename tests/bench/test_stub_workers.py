@@ -10,12 +10,12 @@ from pizero_ray.trainer import driver
 CONFIG = build_config("tiny", population=16, chunk_size=2, planner="none")  # 8 chunks
 
 
-def _train(path, stubs, workers, config=CONFIG, iterations=3, kill_schedule=frozenset()):
+def _train(path, stubs, workers, config=CONFIG, iterations=3, kill_schedule=frozenset(), chunks_per_call=1):
     import dataclasses
 
     run_dir.write_config(path, config)
     options = driver.RunOptions.create(iterations=iterations, workers=workers, checkpoint_every=0,
-                                       gradient_on="driver", compile_cache="none")
+                                       gradient_on="driver", compile_cache="none", chunks_per_call=chunks_per_call)
     options = dataclasses.replace(options, pool=dataclasses.replace(options.pool, kill_schedule=kill_schedule))
     try:
         result = driver.train(path, config, options, worker_factory=stubs.factory())
@@ -33,11 +33,11 @@ def test_scores_are_a_function_of_seed_and_pairs_and_untied():
 
 def test_workers_in_processes_of_their_own_or_standing_in_give_the_same_parameters(ray_session, tmp_path):
     own, own_rows = _train(tmp_path / "own", StubWorkers(CONFIG.chunk_size, 100, 0.01), workers=2)
-    shared, shared_rows = _train(tmp_path / "shared", StubWorkers(CONFIG.chunk_size, 100, 0.01, processes=2),
-                                 workers=6)
+    stand_ins = StubWorkers(CONFIG.chunk_size, 100, 0.01, processes=2)
+    shared, shared_rows = _train(tmp_path / "shared", stand_ins, workers=6)
     assert own["parameter_hash"] == shared["parameter_hash"]
     assert all(row["pairs_evaluated"] == CONFIG.population for row in own_rows + shared_rows)
-    assert shared_rows[-1]["workers"] == 6  # six workers on two processes
+    assert stand_ins.started == 6 and len(stand_ins._actors) == 2  # six workers on two processes
 
 
 def test_a_tenth_of_the_workers_killed_in_every_iteration_changes_nothing(ray_session, tmp_path):
@@ -50,3 +50,7 @@ def test_a_tenth_of_the_workers_killed_in_every_iteration_changes_nothing(ray_se
     assert killed["workers_killed"] == 6 and sum(row["workers_lost"] for row in rows) == 6
     assert all(row["pairs_evaluated"] == config.population for row in rows)  # every iteration completed
     assert killed["parameter_hash"] == clean["parameter_hash"]
+    batched, rows = _train(tmp_path / "batched", StubWorkers(2, 100, 0.02), 20, config, kill_schedule=schedule,
+                           chunks_per_call=4)  # a kill takes a call of four chunks with it
+    assert batched["parameter_hash"] == clean["parameter_hash"] and batched["workers_killed"] == 6
+    assert all(row["pairs_evaluated"] == config.population for row in rows)

@@ -46,6 +46,9 @@ def use(monkeypatch, config, hang_on=None, part_delay_s: float = 0.0, sigterm_on
                 time.sleep(3600)
             return scores(seed, first_pair, chunk)
 
+        def score_chunks(self, theta, seed, first_pairs):
+            return [self.score_chunk(theta, seed, first_pair) for first_pair in first_pairs]
+
         def gradient_part(self, seed, first_pair, weights):
             import os
             import signal

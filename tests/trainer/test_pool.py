@@ -41,6 +41,12 @@ def test_parts_formed_on_the_driver_give_the_same_parameters(tmp_path, compile_c
     assert all(row["gradient_parts_on_driver"] == CONFIG.num_chunks for row in rows)  # no worker was asked
 
 
+def test_several_chunks_per_call_give_the_same_parameters(tmp_path, compile_cache_dir, reference_hash):
+    result, rows = _train(tmp_path, compile_cache_dir, chunks_per_call=3)  # 4 chunks: calls of 3 and 1
+    assert result["parameter_hash"] == reference_hash
+    assert all(row["pairs_evaluated"] == CONFIG.population for row in rows)
+
+
 def test_sigkilled_workers_mid_iteration(tmp_path, compile_cache_dir, reference_hash):
     # Right after chunk 0 of iteration 1 and chunk 3 of iteration 2 are handed out,
     # the process holding them is SIGKILLed.
@@ -281,7 +287,7 @@ def _one_chunk_in_flight(ray, pool, theta_ref, deadline):
     queue = _ChunkQueue(pool, theta_ref, 1, 0, Traffic())
     ref = ray.put(np.zeros((CONFIG.chunk_size, 2), np.float32))
     ray.wait([ref])
-    queue.in_flight[ref] = (0, worker, deadline)
+    queue.in_flight[ref] = ((0,), worker, deadline)
     worker.in_flight += 1
     return queue, worker, ref
 
