@@ -261,6 +261,21 @@ class ChunkScorer:
         self._kept.keep(seed, first_pair, noise)
         return scores
 
+    def score_many(self, theta: np.ndarray, seed: int, first_pairs: Sequence[int]) -> list[np.ndarray]:
+        """Several chunks on one free device (a call of ``--chunks-per-call``): the parameters go to it once, every
+        chunk is started before the first result is waited for, and each chunk's noise is kept as ``score``
+        keeps it. The same programs as ``score``'s: the same scores."""
+        index = self._free.get()
+        try:
+            on_device = self._jax.device_put(np.asarray(theta, np.float32), self.devices[index])
+            started = [self._dispatch(index, on_device, seed, first_pair) for first_pair in first_pairs]
+            scores = [np.asarray(chunk_scores, np.float32) for chunk_scores, _ in started]
+        finally:
+            self._free.put(index)
+        for first_pair, (_, noise) in zip(first_pairs, started):
+            self._kept.keep(seed, first_pair, noise)
+        return scores
+
     def gradient_part(self, seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
         """The chunk's share sum_i w_i z_i [D], from the noise kept while evaluating it, else regenerated."""
         noise = self._kept.take(seed, first_pair)

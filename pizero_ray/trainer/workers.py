@@ -59,8 +59,9 @@ class RolloutWorker:
         return self._chunks.score(theta, iteration_seed, first_pair)
 
     def score_chunks(self, theta: np.ndarray, iteration_seed: int, first_pairs: list[int]) -> list[np.ndarray]:
-        """Several chunks in one call (``--chunks-per-call``), one after another; each as ``score_chunk``."""
-        return [self._chunks.score(theta, iteration_seed, first_pair) for first_pair in first_pairs]
+        """Several chunks in one call (``--chunks-per-call``) on one device, started together; each scores as
+        ``score_chunk`` would."""
+        return self._chunks.score_many(theta, iteration_seed, first_pairs)
 
     def gradient_part(self, iteration_seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
         """The chunk's share of the pseudo-gradient, from the noise kept while evaluating it."""

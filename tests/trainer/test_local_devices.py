@@ -83,6 +83,22 @@ def test_a_straggler_of_an_older_iteration_keeps_the_newer_ones_noise(chunks, th
     assert chunks.regenerated_parts == regenerated_before  # both parts from the kept noise
 
 
+def test_chunks_scored_together_in_one_call_score_as_alone_and_keep_their_noise(chunks, theta_and_reference):
+    theta, reference = theta_and_reference
+    seed = SEED + 200  # a seed no other test uses: the cache keeps the newest seeds' noise only
+    together = chunks.score_many(theta, seed, FIRST_PAIRS)
+    regenerated_before = chunks.regenerated_parts
+    chunks.gradient_part(seed, FIRST_PAIRS[-1], np.ones(CONFIG.chunk_size, np.float32))
+    assert chunks.regenerated_parts == regenerated_before  # score_many kept the chunk's noise
+    alone = [chunks.score(theta, seed, first) for first in FIRST_PAIRS]
+    assert len(together) == len(FIRST_PAIRS)
+    for got, want in zip(together, alone):
+        np.testing.assert_array_equal(got, want)
+    reference_seed = chunks.score_many(theta, SEED, FIRST_PAIRS)
+    for got, want in zip(reference_seed, reference):
+        np.testing.assert_array_equal(got, want)
+
+
 def test_a_scorer_that_keeps_no_noise_regenerates_every_part(theta_and_reference):
     """Where the driver forms every part (--gradient-on driver, or auto with rank-1 noise on CPU workers)
     nobody asks a worker for one: keeping the noise would only hold memory."""
