@@ -18,9 +18,7 @@ from __future__ import annotations
 
 import math
 import statistics
-import tempfile
 import time
-from pathlib import Path
 
 IDEAL_COMPUTE_S = 0.5  # an iteration's rollout, were the driver free
 PAIRS_PER_CHUNK = 2  # small chunks: up to 4,096 of them without the population's own arithmetic dominating
@@ -55,12 +53,12 @@ def sweep_point(workers: int, chunks: int, design: str) -> dict:
     """The real driver for ``MEASURED_ITERATIONS`` iterations against stub workers; medians of the steady ones."""
     from pizero_ray.bench.plans import bench_config
     from pizero_ray.bench.stub_workers import StubWorkers
-    from pizero_ray.storage import run_dir
-    from pizero_ray.trainer import driver
+    from pizero_ray.trainer.options import RunOptions
 
     settings = DESIGNS[design]
     config = bench_config(chunks * PAIRS_PER_CHUNK, PAIRS_PER_CHUNK, perturbation_rank=settings["perturbation_rank"])
-    stubs = StubWorkers(PAIRS_PER_CHUNK, _parameters(config), chunk_delay_s(workers, chunks),
+    parameters = _parameters(config)
+    stubs = StubWorkers(PAIRS_PER_CHUNK, parameters, chunk_delay_s(workers, chunks),
                         processes=None if workers <= MAX_PROCESSES else MAX_PROCESSES)
     driver_cpu, store = [], []
     clock = {"cpu": time.process_time()}
@@ -72,18 +70,24 @@ def sweep_point(workers: int, chunks: int, design: str) -> dict:
             store.append(object_store_bytes())
         clock["cpu"] = time.process_time()  # the memory summary is the bench's, not the driver's
 
-    with tempfile.TemporaryDirectory(prefix="pizero-scale-") as tmp:
-        path = Path(tmp)
-        run_dir.write_config(path, config)
-        options = driver.RunOptions.create(iterations=MEASURED_ITERATIONS, workers=workers, checkpoint_every=0,
-                                           gradient_on=settings["gradient_on"], compile_cache="none",
-                                           chunks_per_call=settings["chunks_per_call"])
-        try:
-            driver.train(path, config, options, on_iteration=on_iteration, worker_factory=stubs.factory())
-        finally:
-            stubs.shutdown()
-        rows = [row for row in run_dir.read_metrics(path) if row["iteration"] > 1]
-    return _point_row(workers, chunks, design, config, rows, driver_cpu[1:], store)
+    options = RunOptions.create(iterations=MEASURED_ITERATIONS, workers=workers, checkpoint_every=0,
+                                gradient_on=settings["gradient_on"], compile_cache="none",
+                                chunks_per_call=settings["chunks_per_call"])
+    _, rows = _against_stubs(config, options, stubs, on_iteration)
+    point = {"workers": workers, "chunks": chunks, "parameters": parameters, "design": design}
+    return _point_row(point, rows, driver_cpu[1:], store)
+
+
+def _against_stubs(config, options, stubs, on_iteration=None) -> tuple[dict, list[dict]]:
+    """``train_briefly`` with ``stubs`` for workers (ended after): the result, and the rows after the first
+    (which starts the workers)."""
+    from pizero_ray.bench.trainer import train_briefly
+
+    try:
+        result, rows = train_briefly(config, options, stubs.factory(), on_iteration)
+    finally:
+        stubs.shutdown()
+    return result, [row for row in rows if row["iteration"] > 1]
 
 
 def _parameters(config) -> int:
@@ -93,15 +97,16 @@ def _parameters(config) -> int:
     return population.params_layout(config, envs.make(config.env, **config.env_kwargs())).size
 
 
-def _point_row(workers, chunks, design, config, rows, driver_cpu, store) -> dict:
+def _point_row(point: dict, rows, driver_cpu, store) -> dict:
+    from pizero_ray.bench.traffic import median_traffic
+
     iteration_s = statistics.median(row["iteration_time_s"] for row in rows)
+    traffic = median_traffic(rows)
     return {
-        "workers": workers, "chunks": chunks, "parameters": _parameters(config), "design": design,
-        "source": "measured", "stand_ins": workers > MAX_PROCESSES,
+        **point, "source": "measured", "stand_ins": point["workers"] > MAX_PROCESSES,
         "driver_s": statistics.median(driver_cpu), "iteration_s": iteration_s,
         "update_s": statistics.median(row["update_time_s"] for row in rows),
-        "bytes_to_workers": int(statistics.median(row["bytes_to_workers"] for row in rows)),
-        "bytes_to_driver": int(statistics.median(row["bytes_from_workers"] for row in rows)),
+        "bytes_to_workers": int(traffic["bytes_to_workers"]), "bytes_to_driver": int(traffic["bytes_from_workers"]),
         "object_store_bytes": store[0] if store else -1,
         "efficiency": IDEAL_COMPUTE_S / iteration_s,
     }
@@ -154,27 +159,16 @@ def faults(workers: int = FAULT_WORKERS, iterations: int = FAULT_ITERATIONS, pro
 
 
 def _fault_run(workers: int, iterations: int, schedule: frozenset) -> dict:
-    import dataclasses
-
     from pizero_ray.bench.plans import bench_config
     from pizero_ray.bench.stub_workers import StubWorkers
-    from pizero_ray.storage import run_dir
-    from pizero_ray.trainer import driver
+    from pizero_ray.trainer.options import RunOptions
 
     config = bench_config(FAULT_CHUNKS * PAIRS_PER_CHUNK, PAIRS_PER_CHUNK, perturbation_rank=1)
     stubs = StubWorkers(PAIRS_PER_CHUNK, _parameters(config), chunk_delay_s(workers, FAULT_CHUNKS))
-    with tempfile.TemporaryDirectory(prefix="pizero-faults-") as tmp:
-        path = Path(tmp)
-        run_dir.write_config(path, config)
-        options = driver.RunOptions.create(iterations=iterations + 1, workers=workers, checkpoint_every=0,
-                                           gradient_on="driver", compile_cache="none")
-        shifted = frozenset((it + 1, chunk) for it, chunk in schedule)  # iteration 0 starts the workers: not killed
-        options = dataclasses.replace(options, pool=dataclasses.replace(options.pool, kill_schedule=shifted))
-        try:
-            result = driver.train(path, config, options, worker_factory=stubs.factory())
-        finally:
-            stubs.shutdown()
-        rows = [row for row in run_dir.read_metrics(path) if row["iteration"] > 1]
+    shifted = frozenset((it + 1, chunk) for it, chunk in schedule)  # iteration 0 starts the workers: not killed
+    options = RunOptions.create(iterations=iterations + 1, workers=workers, checkpoint_every=0, gradient_on="driver",
+                                compile_cache="none", kill_schedule=shifted)
+    result, rows = _against_stubs(config, options, stubs)
     return {"parameter_hash": result["parameter_hash"], "workers_killed": result["workers_killed"],
             "iteration_s": statistics.median(row["iteration_time_s"] for row in rows),
             "max_iteration_s": max(row["iteration_time_s"] for row in rows),

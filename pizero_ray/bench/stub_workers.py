@@ -81,8 +81,7 @@ class StandIn:
 
 
 class StubWorkers:
-    """A ``workers.WorkerFactory``'s two functions for stub workers: ``start`` (the pool's ``start_worker``
-    arguments, ignored but for the node resources asked) and ``stop``.
+    """A ``workers.WorkerFactory``'s two functions for stub workers: ``start`` and ``stop``.
 
     ``processes`` None: one actor process per worker. Else at most that many
     processes; worker k stands in on process k mod ``processes``.
@@ -94,11 +93,11 @@ class StubWorkers:
         self._actors: list = []  # the processes, in start order
         self.started = 0
 
-    def start(self, *args, resources: dict | None = None, **kwargs):
+    def start(self, config_json: str, num_cpus: float, num_gpus: float, compile_cache_dir: str | None,
+              resources: dict | None = None, pin_cores: bool = True, keep_noise: bool = True):
+        """``workers.start_worker``'s arguments; a stub heeds only the custom node resources asked for."""
         import ray
 
-        if len(args) > 4 and args[4]:
-            resources = args[4]  # start_worker's fifth argument: custom node resources
         index = self.started if self._processes is None else self.started % self._processes
         self.started += 1
         if index == len(self._actors):

@@ -13,23 +13,31 @@ from pizero_ray.bench.traffic import median_traffic, where_gradient_parts_form
 from pizero_ray.config import Config
 
 
-def trainer(config: Config, workers: int, iterations: int, cache_dir: str, cpus_per_worker: int = 1,
-            gpus_per_worker: float = 0.0, gradient_on: str = "auto") -> dict:
-    """A short training run: median iteration and update time, first-result latency, bytes each way.
-
-    ``gradient_on`` is the run's ``--gradient-on``; the result says where it resolved to.
-    """
+def train_briefly(config: Config, options, worker_factory=None, on_iteration=None) -> tuple[dict, list[dict]]:
+    """The real trainer on ``config`` with ``options`` (``RunOptions``) in a throwaway run dir: (``driver.train``'s
+    result, the metrics rows of its iterations)."""
     from pizero_ray.storage import run_dir
     from pizero_ray.trainer import driver
 
     with tempfile.TemporaryDirectory(prefix="pizero-bench-") as tmp:
         path = Path(tmp)
         run_dir.write_config(path, config)
-        options = driver.RunOptions.create(iterations=iterations, workers=workers, cpus_per_worker=cpus_per_worker,
-                                           gpus_per_worker=gpus_per_worker, checkpoint_every=0, compile_cache=cache_dir,
-                                           gradient_on=gradient_on)
-        driver.train(path, config, options)
-        rows = [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
+        result = driver.train(path, config, options, on_iteration=on_iteration, worker_factory=worker_factory)
+        return result, [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
+
+
+def trainer(config: Config, workers: int, iterations: int, cache_dir: str, cpus_per_worker: int = 1,
+            gpus_per_worker: float = 0.0, gradient_on: str = "auto") -> dict:
+    """A short training run: median iteration and update time, first-result latency, bytes each way.
+
+    ``gradient_on`` is the run's ``--gradient-on``; the result says where it resolved to.
+    """
+    from pizero_ray.trainer.options import RunOptions
+
+    options = RunOptions.create(iterations=iterations, workers=workers, cpus_per_worker=cpus_per_worker,
+                                gpus_per_worker=gpus_per_worker, checkpoint_every=0, compile_cache=cache_dir,
+                                gradient_on=gradient_on)
+    _, rows = train_briefly(config, options)
     # The first iterations wait for the workers' start and, on a worker with
     # several devices, for its other devices' compiles: the last half is steady.
     steady = rows[len(rows) // 2:]

@@ -111,19 +111,22 @@ def _run_training(run_path: Path, config: Config, options, no_progress: bool) ->
     return 0
 
 
+def _refuse_a_run_dir_with_a_run(run_path: Path) -> None:
+    if (run_path / rundir.CONFIG_FILE).exists():
+        raise UsageError(f"run dir {run_path} already holds a run; continue it with: pizero resume {run_path}")
+
+
 def cmd_train(args) -> int:
     config = train_config(args)
     run_path = rundir.resolve(args.run_dir)
-    if (run_path / rundir.CONFIG_FILE).exists():
-        raise UsageError(f"run dir {run_path} already holds a run; continue it with: pizero resume {run_path}")
+    _refuse_a_run_dir_with_a_run(run_path)
     if run_path.exists() and not run_path.is_dir():
         raise UsageError(f"run dir {run_path} exists and is not a directory")
     # With a wall-clock budget and no iteration target, the budget alone says when to stop.
     iterations = args.iterations or (None if args.minutes else DEFAULT_ITERATIONS)
     options = run_options(args, iterations)
     with writer_lock.hold(run_path):  # one writer per run dir, from its first file on
-        if (run_path / rundir.CONFIG_FILE).exists():  # another `pizero train` got there first
-            raise UsageError(f"run dir {run_path} already holds a run; continue it with: pizero resume {run_path}")
+        _refuse_a_run_dir_with_a_run(run_path)  # again: another `pizero train` may have got there first
         rundir.write_config(run_path, config)  # the last steps before training: all input was valid
         rundir.write_evaluation_schedule(run_path, options.evaluation_schedule())
         return _run_training(run_path, config, options, args.no_progress)

@@ -427,11 +427,10 @@ class _ChunkQueue:
         options = self.pool._options
         devices = worker.info.get("devices", 1)  # calls the worker runs at once
         firsts = [index * self.chunk for index in indices]
-        if len(indices) == 1:
-            ref = worker.actor.score_chunk.remote(self.theta_ref, self.seed, firsts[0])
-        else:
-            ref = worker.actor.score_chunks.remote(self.theta_ref, self.seed, firsts)
-        self._count_dispatch(worker, firsts[0] if len(indices) == 1 else firsts)
+        call, first_pairs = ((worker.actor.score_chunk, firsts[0]) if len(indices) == 1
+                             else (worker.actor.score_chunks, firsts))
+        ref = call.remote(self.theta_ref, self.seed, first_pairs)
+        self._count_dispatch(worker, first_pairs)
         # The deadline allows for the calls queued ahead of this one on the worker, and for each chunk in it.
         deadline = time.time() + options.chunk_timeout_s * len(indices) * (worker.in_flight // devices + 1)
         self.in_flight[ref] = (indices, worker, deadline)

@@ -11,12 +11,10 @@ CONFIG = build_config("tiny", population=16, chunk_size=2, planner="none")  # 8 
 
 
 def _train(path, stubs, workers, config=CONFIG, iterations=3, kill_schedule=frozenset(), chunks_per_call=1):
-    import dataclasses
-
     run_dir.write_config(path, config)
     options = driver.RunOptions.create(iterations=iterations, workers=workers, checkpoint_every=0,
-                                       gradient_on="driver", compile_cache="none", chunks_per_call=chunks_per_call)
-    options = dataclasses.replace(options, pool=dataclasses.replace(options.pool, kill_schedule=kill_schedule))
+                                       gradient_on="driver", compile_cache="none", chunks_per_call=chunks_per_call,
+                                       kill_schedule=kill_schedule)
     try:
         result = driver.train(path, config, options, worker_factory=stubs.factory())
     finally:
