@@ -5,6 +5,7 @@
 #
 #   cluster/local-cluster.sh start    # start both nodes, print how to use them
 #   cluster/local-cluster.sh status   # ray status of this cluster
+#   cluster/local-cluster.sh stop-second  # remove the second node (as `ray stop` would on its own machine)
 #   cluster/local-cluster.sh stop     # stop this cluster's processes only
 #
 # Settings (ports, CPUs, memory, temp dir) are in cluster/local-defaults.sh and
@@ -28,16 +29,9 @@ die() {
     exit 1
 }
 
-cluster_pids() {
-    # This cluster's daemons (GCS, raylets, dashboard, monitors) name its temp
-    # dir on their command lines, its Ray Client server its GCS port; their
-    # descendants (agents, workers, a job's driver) are found through the
-    # process tree. Prints the PIDs, one a word.
-    local all=() frontier=() next=() pid child
-    for pid in $(pgrep -f -- "$PIZERO_RAY_TEMP_DIR/" || true) \
-        $(pgrep -f -- "ray\.util\.client\.server --address=[^ ]*:$PIZERO_RAY_PORT " || true); do
-        frontier+=("$pid")
-    done
+with_descendants() {
+    # The PIDs given and all their descendants, one a word.
+    local all=() frontier=("$@") next=() pid child
     while [[ ${#frontier[@]} -gt 0 ]]; do
         all+=("${frontier[@]}")
         next=()
@@ -49,6 +43,29 @@ cluster_pids() {
         frontier=(${next[@]+"${next[@]}"})
     done
     echo ${all[@]+"${all[@]}"}
+}
+
+cluster_pids() {
+    # This cluster's daemons (GCS, raylets, dashboard, monitors) name its temp
+    # dir on their command lines, its Ray Client server its GCS port; their
+    # descendants (agents, workers, a job's driver) are found through the
+    # process tree. Prints the PIDs, one a word.
+    # shellcheck disable=SC2046  # one PID per word
+    with_descendants $(pgrep -f -- "$PIZERO_RAY_TEMP_DIR/" || true) \
+        $(pgrep -f -- "ray\.util\.client\.server --address=[^ ]*:$PIZERO_RAY_PORT " || true)
+}
+
+second_node_pids() {
+    # The second node's raylet is the one whose dashboard agent listens on
+    # PIZERO_WORKER_AGENT_PORT; its agents and workers descend from it. Its
+    # log monitor is Ray's own process beside it, named with the same suffix
+    # as the raylet's socket (raylet.1, log_monitor.1.out).
+    local raylet suffix
+    raylet=$(pgrep -f -- "raylet_socket_name=$PIZERO_RAY_TEMP_DIR/.*--listen-port=$PIZERO_WORKER_AGENT_PORT " || true)
+    [[ -z $raylet ]] && return 0
+    suffix=$(tr '\0' '\n' <"/proc/$raylet/cmdline" | sed -n 's|^--raylet_socket_name=.*/raylet||p')
+    # shellcheck disable=SC2046  # one PID per word
+    with_descendants "$raylet" $(pgrep -f -- "$PIZERO_RAY_TEMP_DIR/.*/log_monitor$suffix\.out" || true)
 }
 
 port_in_use() {
@@ -153,16 +170,11 @@ alive() {
     done
 }
 
-stop() {
-    local pids left
-    read -r -a pids <<<"$(cluster_pids)"
-    if [[ ${#pids[@]} -eq 0 ]]; then
-        echo "No cluster with temp dir $PIZERO_RAY_TEMP_DIR is running."
-        return 0
-    fi
-    echo "Stopping the cluster with temp dir $PIZERO_RAY_TEMP_DIR (${#pids[@]} processes) ..."
+end_processes() {
+    # SIGTERM to the PIDs given, up to 15 s for a clean exit (like `ray stop`), then SIGKILL.
+    local pids=("$@") left
     kill -TERM "${pids[@]}" 2>/dev/null || true
-    for _ in $(seq 30); do  # up to 15 s for a clean exit, like `ray stop`
+    for _ in $(seq 30); do
         left=$(alive "${pids[@]}")
         [[ -z $left ]] && break
         sleep 0.5
@@ -179,7 +191,31 @@ stop() {
     if [[ -n $left ]]; then
         die "processes still running: $left"
     fi
+}
+
+stop() {
+    local pids
+    read -r -a pids <<<"$(cluster_pids)"
+    if [[ ${#pids[@]} -eq 0 ]]; then
+        echo "No cluster with temp dir $PIZERO_RAY_TEMP_DIR is running."
+        return 0
+    fi
+    echo "Stopping the cluster with temp dir $PIZERO_RAY_TEMP_DIR (${#pids[@]} processes) ..."
+    end_processes "${pids[@]}"
     echo "Stopped."
+}
+
+stop_second() {
+    # What `ray stop` does on the second node's own machine: its raylet, its
+    # workers and agents end; the head and a run's driver stay.
+    local pids
+    read -r -a pids <<<"$(second_node_pids)"
+    if [[ ${#pids[@]} -eq 0 ]]; then
+        die "no second node of the cluster with temp dir $PIZERO_RAY_TEMP_DIR is running"
+    fi
+    echo "Stopping the second node (${#pids[@]} processes) ..."
+    end_processes "${pids[@]}"
+    echo "Stopped the second node; the head runs on."
 }
 
 status() {
@@ -189,9 +225,10 @@ status() {
 case "${1:-}" in
     start) start ;;
     stop) stop ;;
+    stop-second) stop_second ;;
     status) status ;;
     *)
-        echo "usage: $0 start|status|stop" >&2
+        echo "usage: $0 start|status|stop-second|stop" >&2
         exit 2
         ;;
 esac
