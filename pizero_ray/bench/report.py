@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from pizero_ray.bench.plans import LOW_RANK
 
@@ -33,6 +33,7 @@ class Measurements:
     cpus_per_worker: dict[int, int]  # workers -> the CPUs each got
     worker_peak_rss_mb: dict[str, float]  # per mode where measured
     peak_rss_mb: float  # this process's
+    program_loops: dict[str, dict] = field(default_factory=dict)  # per mode: rollout.pair_scorer_loops
 
 
 def result(m: Measurements) -> dict:
@@ -57,6 +58,7 @@ def result(m: Measurements) -> dict:
         "population_sweep": [{k: r[k] for k in ("mode", "population", "agent_steps_per_s", "iteration_s")}
                              for r in m.sweeps["population"]],
         "planner_sweep": m.planners,
+        "program_loops": m.program_loops,
     })
     return out
 

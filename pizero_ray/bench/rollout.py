@@ -50,3 +50,23 @@ def rollouts(configs: dict[str, Config], repeats: int, max_devices: dict[str, in
 def rollout(config: Config, repeats: int) -> dict:
     """The rollout of one config alone (see ``rollouts``)."""
     return rollouts({"rollout": config}, repeats)["rollout"]
+
+
+def pair_scorer_loops(config: Config) -> dict:
+    """``loops.summary`` of the chunk program the workers run (``population.make_pair_scorer``), compiled for
+    this process's default device: its while loops, how they nest, which are data-dependent."""
+    import jax
+    import jax.numpy as jnp
+
+    import envs
+    from pizero_ray.bench import loops
+    from pizero_ray.es import population
+
+    env = envs.make(config.env, **config.env_kwargs())
+    layout = population.params_layout(config, env)
+    chunk = config.chunk_size
+    text = population.make_pair_scorer(config, env, layout).lower(
+        jax.ShapeDtypeStruct((layout.size,), jnp.float32), jax.ShapeDtypeStruct((), jnp.uint32),
+        jax.ShapeDtypeStruct((chunk,), jnp.int32),
+        jax.ShapeDtypeStruct((chunk, layout.perturbation.noise_size), jnp.float32)).compile().as_text()
+    return loops.summary(text)

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import tempfile
 
 from pizero_ray.bench import report
 from pizero_ray.bench.plans import LOW_RANK, BenchPlan, bench_config
-from pizero_ray.bench.rollout import compile_rollout
+from pizero_ray.bench.rollout import compile_rollout, pair_scorer_loops
 from pizero_ray.bench.straightforward import compile_straightforward
 from pizero_ray.bench.sweeps import budget_and_population_sweeps, planner_sweep
 from pizero_ray.bench.timing import time_interleaved
@@ -27,6 +28,9 @@ def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
     configs = {mode: bench_config(plan.population, chunk, perturbation_rank=rank, devices=devices)
                for mode, (rank, chunk) in modes.items()}
     rollouts = _main_rollouts(plan, configs, devices, progress)
+    progress("the rollout programs' while loops")
+    program_loops = {mode: pair_scorer_loops(config) for mode, config in configs.items()}
+    program_loops["low_rank_planner_none"] = pair_scorer_loops(dataclasses.replace(configs["low_rank"], planner="none"))
     update_s = {}
     for mode in modes:
         progress(f"driver update, regenerating every chunk ({mode})")
@@ -47,7 +51,7 @@ def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
         rollouts=rollouts, driver_update_s=update_s, sweeps=sweeps, planners=planners, trainers=trainers,
         cold_trainer=trainers["exact", plan.exact_trainer_workers[0]], cached_trainer=cached,
         cpus_per_worker={workers: share(workers)[0] for _, workers in trainers}, worker_peak_rss_mb=worker_rss,
-        peak_rss_mb=local_devices.peak_rss_mb()))
+        peak_rss_mb=local_devices.peak_rss_mb(), program_loops=program_loops))
 
 
 def _worker_share(devices: int, worker_gpus: float, workers: int) -> tuple[int, float]:

@@ -1,0 +1,57 @@
+"""The while-loop nest read from compiled programs: parsed from HLO text, and as the rollout compiles."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from pizero_ray.bench import loops
+from pizero_ray.bench.rollout import pair_scorer_loops
+from pizero_ray.config import build_config
+
+HLO = """HloModule m
+
+%inner_cond (p: (s32[])) -> pred[] {
+  ROOT %c = pred[] constant(true)
+}
+
+%walk (p: (s32[])) -> (s32[]) {
+  ROOT %t = (s32[]) tuple(s32[] %x)
+}
+
+%sims_body (p: (s32[])) -> (s32[]) {
+  %w1 = (s32[]) while((s32[]) %p), condition=%inner_cond, body=%walk
+  %w2 = (s32[]) while((s32[]) %p), condition=%inner_cond, body=%walk
+  %rng = (s32[]) while((s32[]) %p), condition=%inner_cond, body=%walk, backend_config={"known_trip_count":{"n":"5"}}
+  ROOT %t = (s32[]) tuple(s32[] %x)
+}
+
+%branch (p: (s32[])) -> (s32[]) {
+  ROOT %w = (s32[]) while((s32[]) %p), condition=%inner_cond, body=%sims_body, backend_config={"known_trip_count":{"n":"10"}}
+}
+
+%episode_body (p: (s32[])) -> (s32[]) {
+  ROOT %c = (s32[]) conditional(pred[] %q, (s32[]) %p, (s32[]) %p), branch_computations={%branch, %walk}
+}
+
+ENTRY %main (a: s32[]) -> (s32[]) {
+  %f = (s32[]) fusion(s32[] %a), kind=kLoop, calls=%walk
+  ROOT %e = (s32[]) while((s32[]) %t), condition=%inner_cond, body=%episode_body
+}
+"""
+
+
+def test_the_nest_is_read_through_calls_and_branches():
+    (episode,) = loops.loop_nest(HLO)
+    assert episode.trip_count is None
+    (simulations,) = episode.inner
+    assert simulations.trip_count == 10
+    assert [loop.trip_count for loop in simulations.inner] == [None, None, 5]
+    assert loops.summary(HLO) == {"while_loops": 5, "data_dependent_while_loops": 3, "deepest_loop_nest": 3,
+                                  "data_dependent_loop_shape": "?[10[? ?]]"}
+
+
+def test_the_rollout_has_an_episode_loop_around_the_simulations_each_a_walk_and_a_backup():
+    config = build_config("tiny", env="tsp", population=2, chunk_size=2, num_simulations=3)
+    assert pair_scorer_loops(config)["data_dependent_loop_shape"] == "?[3[? ?]]"
+    without = pair_scorer_loops(dataclasses.replace(config, planner="none"))
+    assert without["data_dependent_loop_shape"] == "?"  # the episode loop alone
