@@ -1,6 +1,8 @@
 """JAX-native environments for PiZero; see ``envs.base`` for the protocol.
 
-Each environment module provides ``make(**params) -> Environment``. The
+Each environment module provides ``make(**params) -> Environment``; an
+environment of your own is named by import path instead of registered here
+(``make("mypackage.mymodule:make")``, ``envs.import_path``). The
 training presets that suit an environment (horizon-dependent population sizes,
 say) are the trainer's: ``pizero_ray.presets.ENV_PRESETS``.
 """
@@ -27,14 +29,26 @@ _REGISTRY: dict[str, tuple[str, dict[str, Any]]] = {
 ENV_NAMES = tuple(sorted(_REGISTRY))
 
 
+def is_import_path(name: str) -> bool:
+    """Whether ``name`` names an environment of your own, ``module:factory`` (registered names have no colon)."""
+    return isinstance(name, str) and ":" in name
+
+
 def _module(name: str):
     if name not in _REGISTRY:
-        raise ValueError(f"unknown environment {name!r}; choose from {', '.join(ENV_NAMES)}")
+        raise ValueError(f"unknown environment {name!r}; choose from {', '.join(ENV_NAMES)}, "
+                         "or name your own by import path module:factory")
     return importlib.import_module(_REGISTRY[name][0])
 
 
 def make(name: str, **env_args) -> Environment:
-    """Builds an environment by name; unknown names or bad parameters raise a one-line ValueError."""
+    """Builds an environment by name, or by import path ``module:factory`` (an environment of your own,
+    checked against the protocol: ``envs.import_path``); unknown names or bad parameters raise a one-line
+    ValueError."""
+    if is_import_path(name):
+        from envs import import_path
+
+        return import_path.make(name, **env_args)
     module = _module(name)
     try:
         return module.make(**_REGISTRY[name][1], **env_args)
@@ -42,4 +56,4 @@ def make(name: str, **env_args) -> Environment:
         raise ValueError(f"bad parameters for environment {name!r}: {env_args} ({error})") from None
 
 
-__all__ = ["ENV_NAMES", "EnvSpec", "Environment", "Observation", "make"]
+__all__ = ["ENV_NAMES", "EnvSpec", "Environment", "Observation", "is_import_path", "make"]

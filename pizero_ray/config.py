@@ -44,7 +44,9 @@ class Config:
         help="pizero: PiZero by ES; es: the same agent without a planner (--planner none); alphazero: MCTS over "
              "the true simulator, trained by gradients on self-play; muzero: MCTS over a learned model, likewise")
     # environment
-    env: str = setting("tsp", flag="--env", choices=_env_names, help="the environment")
+    env: str = setting(
+        "tsp", flag="--env", choices=_env_names,
+        help="the environment: a registered name, or your own as module:factory (docs/your-environment.md)")
     env_args: tuple[tuple[str, Any], ...] = setting(
         (), flag="--env-arg", metavar="KEY=VALUE",
         help="an environment parameter, repeatable (e.g. num_cities=8); the value is read as JSON if it can be")
@@ -124,7 +126,7 @@ class Config:
             need(value in allowed, f"unknown {name.replace('_', ' ')} {value!r} (choose from {', '.join(allowed)})")
 
         need_choice("method")
-        need_choice("env")
+        self._validate_env()
         for name in ("hidden_size", "latent_size", "memory_size", "num_abstract_actions",
                      "population", "episodes_per_member", "chunk_size"):
             value = getattr(self, name)
@@ -163,6 +165,20 @@ class Config:
         need(0 <= self.seed < 2**32, f"seed must be in [0, 2^32), got {self.seed}")
         self._validate_method()
         return self
+
+    def _validate_env(self) -> None:
+        """A registered name, or an import path module:factory (its module is imported when the env is built)."""
+        import envs
+        from envs import import_path
+
+        if envs.is_import_path(self.env):
+            try:
+                import_path.parse(self.env)
+            except ValueError as error:
+                raise ConfigError(str(error)) from None
+        elif self.env not in envs.ENV_NAMES:
+            raise ConfigError(f"unknown env {self.env!r} (choose from {', '.join(envs.ENV_NAMES)}, "
+                              "or name your own by import path module:factory)")
 
     def _validate_method(self) -> None:
         if self.method == "es" and self.planner != "none":

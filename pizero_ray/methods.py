@@ -27,7 +27,10 @@ def make_env(config: Config, **env_args) -> Environment:
     import envs
     from envs.discretised import discretise
 
-    env = envs.make(config.env, **{**config.env_kwargs(), **env_args})
+    try:  # a bad parameter, or an environment of your own that cannot be imported or breaks the protocol
+        env = envs.make(config.env, **{**config.env_kwargs(), **env_args})
+    except ValueError as error:
+        raise ConfigError(str(error)) from None
     if config.gradient_trained and not env.spec.discrete:
         env = discretise(env, config.action_grid)
     return env

@@ -163,5 +163,8 @@ def method_env_notes(name: str) -> list[str]:
 
 
 def env_preset(env: str, preset: str) -> dict[str, Any]:
-    """The environment's overrides for a preset (empty if it has none)."""
-    return dict(ENV_PRESETS.get(env, {}).get(preset, {}))
+    """The environment's overrides for a preset; empty where it has none, as for every environment of your own
+    (an import path, ``--env mypackage.mymodule:make``): the global preset alone applies to those."""
+    if env not in ENV_PRESETS:
+        return {}
+    return dict(ENV_PRESETS[env].get(preset, {}))

@@ -162,6 +162,28 @@ def test_a_bad_method_setting_is_one_line_naming_it(overrides, message):
         build_config("default", **overrides)
 
 
+@pytest.mark.parametrize("preset", ["default", "paper", "tiny"])
+def test_an_environment_of_your_own_gets_the_global_preset_alone(preset):
+    """An import path has no presets of its own (nor a method's for it): the global preset's values, and no
+    KeyError. Its parameters are its own: no registered environment's env_args reach it."""
+    own = build_config(preset, env="examples.corridor:make", method="alphazero")
+    registered = build_config(preset, env="tsp", method="alphazero")  # tsp has no env preset; alphazero on tsp has
+    assert dataclasses.replace(own, env="tsp") == dataclasses.replace(registered, num_simulations=own.num_simulations)
+    assert own.num_simulations == {**PRESETS[preset], **METHOD_PRESETS["alphazero"]}.get("num_simulations", 10)
+    assert own.env_args == ()
+
+
+@pytest.mark.parametrize("env, message", [
+    ("chess", "unknown env 'chess' (choose from 2048, collect"),
+    ("examples.corridor:", "environment 'examples.corridor:': an import path must read module:factory"),
+    ("examples corridor:make", "an import path must read module:factory"),
+])
+def test_an_env_is_a_registered_name_or_an_import_path(env, message):
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        build_config("tiny", env=env)
+    assert build_config("tiny", env="any.module:factory").env == "any.module:factory"  # not imported until built
+
+
 def test_environment_presets_name_real_environments_and_presets():
     import envs
 

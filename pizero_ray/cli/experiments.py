@@ -17,11 +17,13 @@ _GRID_FIELDS = ("env", "method", "seed", "env_args")
 
 
 def _env_scoped_arg(text: str) -> tuple[str, tuple[str, object]]:
-    """ENV:KEY=VALUE, an environment parameter for one environment of an experiment."""
-    env, sep, pair = text.partition(":")
-    if not sep or not env:
+    """ENV:KEY=VALUE, an environment parameter for one environment of an experiment. ENV is what precedes the
+    last colon before the first "=": an import path has a colon of its own (examples.corridor:make:length=5)."""
+    named, equals, value = text.partition("=")
+    env, sep, key = named.rpartition(":")
+    if not sep or not env or not equals:
         raise argparse.ArgumentTypeError(f"expected ENV:KEY=VALUE, got {text!r}")
-    return env, env_arg(pair)
+    return env, env_arg(f"{key}={value}")
 
 
 def add_experiment_parser(sub) -> None:

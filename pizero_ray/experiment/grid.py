@@ -55,10 +55,11 @@ class Experiment:
     def __post_init__(self) -> None:
         import envs as environments
 
-        for env in self.envs:
-            if env not in environments.ENV_NAMES:
+        for env in self.envs:  # a registered name, or an environment of your own by import path module:factory
+            if env not in environments.ENV_NAMES and not environments.is_import_path(env):
                 known = ", ".join(environments.ENV_NAMES)
-                raise ConfigError(f"--envs: unknown environment {env!r}; choose from {known}")
+                raise ConfigError(f"--envs: unknown environment {env!r}; choose from {known}, or name your own by "
+                                  "import path module:factory")
         for method in self.methods:
             if method not in METHODS:
                 raise ConfigError(f"--methods: unknown method {method!r}; choose from {', '.join(METHODS)}")

@@ -132,3 +132,17 @@ def test_tune_takes_pending_trials_in_the_grids_order_whatever_order_it_lists_th
     assert order.choose_trial_to_run(controller).name == trials[-1].name
     shuffled[0].status = TuneTrial.TERMINATED
     assert order.choose_trial_to_run(controller) is None
+
+
+def test_an_environment_of_your_own_is_a_grid_axis_with_parameters_of_its_own():
+    from pizero_ray.cli.experiments import _env_scoped_arg
+
+    assert _env_scoped_arg("examples.corridor:make:length=5") == ("examples.corridor:make", ("length", 5))
+    assert _env_scoped_arg("sokoban:levels=/data/a:b") == ("sokoban", ("levels", "/data/a:b"))
+    experiment = _experiment(envs=("tsp", "examples.corridor:make"),
+                             env_args=(("examples.corridor:make", (("length", 5),)),), eval_env_args=())
+    config = experiment.config(grid.Trial("examples.corridor:make", "pizero", 0))
+    assert config.env == "examples.corridor:make" and dict(config.env_args) == {"length": 5}
+    grid.check(experiment)  # builds (and checks) the corridor with length 5: no error
+    with pytest.raises(ConfigError, match="--envs: unknown environment 'corridor'; choose from 2048"):
+        _experiment(envs=("corridor",), env_args=(), eval_env_args=())
