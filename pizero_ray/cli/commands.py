@@ -11,7 +11,7 @@ import os
 import sys
 from typing import Callable, NamedTuple
 
-from pizero_ray.cli import experiments, reports, training
+from pizero_ray.cli import compare, experiments, reports, training
 from pizero_ray.cli.arguments import UsageError
 from pizero_ray.config import ConfigError
 from pizero_ray.storage.checkpoints import CheckpointError
@@ -29,6 +29,7 @@ COMMANDS = {
     "chaos": Command(training.add_chaos_parser, training.cmd_chaos),
     "resume": Command(training.add_resume_parser, training.cmd_resume),
     "eval": Command(reports.add_eval_parser, reports.cmd_eval),
+    "compare": Command(compare.add_compare_parser, compare.cmd_compare),
     "render": Command(reports.add_render_parser, reports.cmd_render),
     "inspect": Command(reports.add_inspect_parser, reports.cmd_inspect),
     "bench": Command(reports.add_bench_parser, reports.cmd_bench),

@@ -42,6 +42,12 @@ def add_eval_parser(sub) -> None:
     _add_env_arg_option(evaluate)
     evaluate.add_argument("--zero-memory", action="store_true",
                           help="hold the agent's memory at its initial zeros: what the memory is worth (pacman-po)")
+    evaluate.add_argument("--per-episode", metavar="FILE",
+                          help="also write each episode's score to FILE (replaced if it exists): .jsonl, one JSON "
+                               "object a line (episode, seed, score); .npy, the scores alone as float64 in episode "
+                               "order. Episode i of --seed S starts from the instance that key i of "
+                               "split(fold_in(PRNGKey(S), 0)) resets: the same for every run on the environment; "
+                               "the same --seed and --episodes replay the whole evaluation")
 
 
 def add_render_parser(sub) -> None:
@@ -94,10 +100,14 @@ def _print_report(result: dict, as_json: bool, key_width: int) -> None:
 
 
 def cmd_eval(args) -> int:
-    from pizero_ray.cli.evaluate import evaluate_run
+    from pizero_ray.cli import per_episode
+    from pizero_ray.cli.evaluate import evaluate_run_scores
 
-    result = evaluate_run(existing_run(args.run_dir), args.episodes, args.seed, dict(args.env_arg),
-                          zero_memory=args.zero_memory)
+    per_episode_path = per_episode.checked_path(args.per_episode) if args.per_episode else None
+    result, scores = evaluate_run_scores(existing_run(args.run_dir), args.episodes, args.seed, dict(args.env_arg),
+                                         zero_memory=args.zero_memory)
+    if per_episode_path is not None:
+        result["per_episode"] = str(per_episode.write(per_episode_path, scores, args.seed))
     _print_report(result, args.json, key_width=30)
     return 0
 

@@ -1,0 +1,1 @@
+"""What evaluations tell apart: ``paired``, two agents' scores on the same episodes (pure NumPy/SciPy)."""
