@@ -10,7 +10,7 @@ from pizero_ray.config import build_config
 
 HLO = """HloModule m
 
-%inner_cond (p: (s32[])) -> pred[] {
+%cnd (p: (s32[])) -> pred[] {
   ROOT %c = pred[] constant(true)
 }
 
@@ -18,24 +18,24 @@ HLO = """HloModule m
   ROOT %t = (s32[]) tuple(s32[] %x)
 }
 
-%sims_body (p: (s32[])) -> (s32[]) {
-  %w1 = (s32[]) while((s32[]) %p), condition=%inner_cond, body=%walk
-  %w2 = (s32[]) while((s32[]) %p), condition=%inner_cond, body=%walk
-  %rng = (s32[]) while((s32[]) %p), condition=%inner_cond, body=%walk, backend_config={"known_trip_count":{"n":"5"}}
+%sims (p: (s32[])) -> (s32[]) {
+  %w1 = (s32[]) while((s32[]) %p), condition=%cnd, body=%walk
+  %w2 = (s32[]) while((s32[]) %p), condition=%cnd, body=%walk
+  %rng = (s32[]) while((s32[]) %p), condition=%cnd, body=%walk, backend_config={"known_trip_count":{"n":"5"}}
   ROOT %t = (s32[]) tuple(s32[] %x)
 }
 
 %branch (p: (s32[])) -> (s32[]) {
-  ROOT %w = (s32[]) while((s32[]) %p), condition=%inner_cond, body=%sims_body, backend_config={"known_trip_count":{"n":"10"}}
+  ROOT %w = (s32[]) while((s32[]) %p), condition=%cnd, body=%sims, backend_config={"known_trip_count":{"n":"10"}}
 }
 
-%episode_body (p: (s32[])) -> (s32[]) {
+%episode (p: (s32[])) -> (s32[]) {
   ROOT %c = (s32[]) conditional(pred[] %q, (s32[]) %p, (s32[]) %p), branch_computations={%branch, %walk}
 }
 
 ENTRY %main (a: s32[]) -> (s32[]) {
   %f = (s32[]) fusion(s32[] %a), kind=kLoop, calls=%walk
-  ROOT %e = (s32[]) while((s32[]) %t), condition=%inner_cond, body=%episode_body
+  ROOT %e = (s32[]) while((s32[]) %t), condition=%cnd, body=%episode
 }
 """
 

@@ -1,0 +1,103 @@
+"""docs/options.md, generated from the settings declared once: every option of ``pizero train`` and what the
+presets change. ``python -m pizero_ray.cli.reference > docs/options.md`` writes it; a test holds the file to it.
+
+Pure Python: no Ray, no JAX.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pizero_ray import presets
+from pizero_ray.cli.training import DEFAULT_ITERATIONS
+from pizero_ray.config import Config
+from pizero_ray.settings import Setting, declared
+from pizero_ray.trainer.options import RunOptions
+
+HEADER = """# Options of `pizero train`
+
+Generated from the settings declared once, in their fields of `Config`
+(pizero_ray/config.py) and `RunOptions`/`PoolOptions` (pizero_ray/trainer/options.py),
+and from pizero_ray/presets.py: `python -m pizero_ray.cli.reference > docs/options.md`
+rewrites this page, and `tests/cli/test_reference.py` fails when it is stale.
+`pizero train --help` is generated from the same declarations. `chaos` takes
+the same options; `resume` the run options (the second table).
+
+Every option is checked before anything is written: a bad value is a one-line
+error naming it, exit code 2. `--preset NAME` (`default`, `paper`, `tiny`)
+chooses the defaults an option overrides; the last section lists what each
+preset changes.
+"""
+
+
+def _cell(text: Any) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def _default(s: Setting) -> str:
+    if s.name == "iterations":  # train's own default, where neither --iterations nor --minutes is given
+        return f"{DEFAULT_ITERATIONS} (with `--minutes` alone: no limit)"
+    if not s.has_default or s.default is None or s.default == ():
+        return "none"
+    if s.type is bool:
+        return "not given"  # a flag: given, it turns its setting's default around
+    if s.name == "compile_cache":  # the same page whoever generates it, wherever
+        return "`$PIZERO_COMPILE_CACHE`, else ~/.cache/pizero-ray/jax"
+    if isinstance(s.default, tuple):
+        return ",".join(map(str, s.default))
+    return f"{s.default:g}" if isinstance(s.default, float) else str(s.default)
+
+
+def _meaning(s: Setting) -> str:
+    notes = presets.method_env_notes(s.name)
+    text = s.help + (f" ({'; '.join(notes)})" if notes else "")
+    return text + (f"; one of {', '.join(f'`{c}`' for c in s.allowed)}" if s.choices is not None else "")
+
+
+def options_table(cls: type) -> list[str]:
+    """A Markdown table of the declared settings of ``cls`` that have a flag."""
+    rows = ["| option | meaning | default |", "|---|---|---|"]
+    for s in declared(cls):
+        if s.flag is not None:
+            flag = f"`{s.flag} {s.metavar}`" if s.metavar else f"`{s.flag}`"
+            rows.append(f"| {flag} | {_cell(_meaning(s))} | {_cell(_default(s))} |")
+    return rows
+
+
+def _overrides(values: dict[str, Any]) -> str:
+    flags = {s.name: s.flag or s.name for s in declared(Config)}
+
+    def shown(name: str, value: Any) -> str:
+        if isinstance(value, dict):  # env_args
+            return ", ".join(f"`--env-arg {k}={v}`" for k, v in value.items())
+        return f"`{flags.get(name, name)} {value}`"
+
+    return "; ".join(shown(name, value) for name, value in values.items()) or "nothing"
+
+
+def presets_table() -> list[str]:
+    """What each preset changes, in the order ``build_config`` applies them."""
+    rows = ["| applies to | preset | changes |", "|---|---|---|"]
+    rows += [f"| every environment | `{name}` | {_overrides(values)} |" for name, values in presets.PRESETS.items()]
+    for env, by_preset in presets.ENV_PRESETS.items():
+        rows += [f"| `--env {env}` | `{name}` | {_overrides(values)} |" for name, values in by_preset.items() if values]
+    rows += [f"| `--method {method}` | any | {_overrides(values)} |"
+             for method, values in presets.METHOD_PRESETS.items()]
+    rows += [f"| `--method {method} --env {env}` | any | {_overrides(values)} |"
+             for (method, env), values in presets.METHOD_ENV_PRESETS.items()]
+    return rows
+
+
+def options_reference() -> str:
+    """The whole of docs/options.md."""
+    parts = [HEADER, "## What is computed (the run's config.json)", "",
+             "`--preset NAME`: the defaults below are overridden by the preset's (`default` unless named).", "",
+             *options_table(Config), "", "## How it runs (`train`, `resume`, `chaos`)", "",
+             *options_table(RunOptions), "", "## What the presets change", "",
+             "Applied in this order, then the options given: the preset, its environment's, the method's,",
+             "the method's on that environment.", "", *presets_table()]
+    return "\n".join(parts) + "\n"
+
+
+if __name__ == "__main__":
+    print(options_reference(), end="")
