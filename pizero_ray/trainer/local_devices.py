@@ -193,17 +193,25 @@ class ChunkScorer:
         chunk_noise_bytes = config.chunk_size * layout.perturbation.noise_size * 4
         self._kept = NoiseCache(chunk_noise_bytes, max_bytes=None if keep_noise else 0)  # 0: keeps nothing
 
-        def compile_for(device):
+        def compile_for(device, chunks: int = 1):
+            """The noise and score programs for a launch of ``chunks`` consecutive chunks on ``device``."""
             on = SingleDeviceSharding(device)
             seed = jax.ShapeDtypeStruct((), jnp.uint32, sharding=on)
-            noise = self._parts.noise.lower(seed, jax.ShapeDtypeStruct((), jnp.int32, sharding=on)).compile()
+            pairs = chunks * config.chunk_size
+            make_noise = self._parts.noise if chunks == 1 else _launch_noise(self._parts.noise, chunks,
+                                                                             config.chunk_size)
+            noise = make_noise.lower(seed, jax.ShapeDtypeStruct((), jnp.int32, sharding=on)).compile()
             scores = pair_scores.lower(
                 jax.ShapeDtypeStruct((layout.size,), jnp.float32, sharding=on),
                 seed,
-                jax.ShapeDtypeStruct((config.chunk_size,), jnp.int32, sharding=on),
-                jax.ShapeDtypeStruct((config.chunk_size, layout.perturbation.noise_size), jnp.float32, sharding=on),
+                jax.ShapeDtypeStruct((pairs,), jnp.int32, sharding=on),
+                jax.ShapeDtypeStruct((pairs, layout.perturbation.noise_size), jnp.float32, sharding=on),
             ).compile()
             return noise, scores
+
+        self._compile_for = compile_for
+        self._launches: dict[tuple[int, int], tuple] = {}  # (device index, chunks) -> programs, compiled on use
+        self._launch_lock = threading.Lock()
 
         # The first device's programs are compiled now, so that a worker is ready
         # as soon as it can return a chunk; the others (the same programs for
@@ -236,16 +244,31 @@ class ChunkScorer:
         return len(self.devices)
 
     @property
+    def launch_sizes(self) -> tuple[int, ...]:
+        """The launches of several chunks this scorer has compiled programs for, in chunks."""
+        return tuple(sorted({chunks for _, chunks in self._launches}))
+
+    @property
     def regenerated_parts(self) -> int:
         """Gradient parts this scorer had to regenerate the noise for (it had not kept it)."""
         return self._kept.misses
 
-    def _dispatch(self, index: int, theta, seed: int, first_pair: int):
-        """Starts one chunk on device ``index``; returns its (not yet ready) scores and noise."""
+    def _programs(self, index: int, chunks: int):
+        """Device ``index``'s programs for a launch of ``chunks`` chunks (compiled on first use, beyond one)."""
+        if chunks == 1:
+            return self._compiled[index]
+        with self._launch_lock:
+            if (index, chunks) not in self._launches:
+                self._launches[(index, chunks)] = self._compile_for(self.devices[index], chunks)
+            return self._launches[(index, chunks)]
+
+    def _dispatch(self, index: int, theta, seed: int, first_pair: int, chunks: int = 1):
+        """Starts ``chunks`` consecutive chunks from ``first_pair`` on device ``index`` as one launch; returns
+        their (not yet ready) scores and noise, the chunks' rows one after another."""
         device = self.devices[index]
-        pairs = np.arange(first_pair, first_pair + self.config.chunk_size, dtype=np.int32)
+        pairs = np.arange(first_pair, first_pair + chunks * self.config.chunk_size, dtype=np.int32)
         put = self._jax.device_put
-        make_noise, score = self._compiled[index]
+        make_noise, score = self._programs(index, chunks)
         seed = put(np.uint32(seed), device)
         noise = make_noise(seed, put(np.int32(first_pair), device))
         return score(put(theta, device), seed, put(pairs, device), noise), noise
@@ -262,19 +285,31 @@ class ChunkScorer:
         return scores
 
     def score_many(self, theta: np.ndarray, seed: int, first_pairs: Sequence[int]) -> list[np.ndarray]:
-        """Several chunks on one free device (a call of ``--chunks-per-call``): the parameters go to it once, every
-        chunk is started before the first result is waited for, and each chunk's noise is kept as ``score``
-        keeps it. The same programs as ``score``'s: the same scores."""
+        """Several chunks on one free device (a call of ``--chunks-per-call``): the parameters go to it once, and
+        consecutive chunks go as one launch of all their pairs (``launches``), every launch started before the
+        first result is waited for. Each chunk's scores are the ones ``score`` gives it (a pair's episodes and
+        noise come from its index alone; tests/trainer/test_local_devices.py), and its noise is kept as
+        ``score`` keeps it.
+
+        On a GPU a launch of many chunks is what fills the device: a step of the rollout costs about as much
+        for 64 members as for thousands, so chunks one after another would leave it mostly idle.
+        """
+        size = self.config.chunk_size
         index = self._free.get()
         try:
             on_device = self._jax.device_put(np.asarray(theta, np.float32), self.devices[index])
-            started = [self._dispatch(index, on_device, seed, first_pair) for first_pair in first_pairs]
-            scores = [np.asarray(chunk_scores, np.float32) for chunk_scores, _ in started]
+            started = [(firsts, self._dispatch(index, on_device, seed, firsts[0], len(firsts)))
+                       for firsts in launches(first_pairs, size)]
+            scores = {}
+            for firsts, (launch_scores, _) in started:
+                launch_scores = np.asarray(launch_scores, np.float32)
+                scores.update({first: launch_scores[i * size:(i + 1) * size] for i, first in enumerate(firsts)})
         finally:
             self._free.put(index)
-        for first_pair, (_, noise) in zip(first_pairs, started):
-            self._kept.keep(seed, first_pair, noise)
-        return scores
+        for firsts, (_, noise) in started:
+            for i, first in enumerate(firsts):
+                self._kept.keep(seed, first, noise if len(firsts) == 1 else noise[i * size:(i + 1) * size])
+        return [scores[first] for first in first_pairs]
 
     def gradient_part(self, seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
         """The chunk's share sum_i w_i z_i [D], from the noise kept while evaluating it, else regenerated."""
@@ -291,3 +326,36 @@ class ChunkScorer:
         pending = [self._dispatch(i % self.num_devices, on_device[i % self.num_devices], seed, first)
                    for i, first in enumerate(first_pairs)]
         return [np.asarray(scores, np.float32) for scores, _ in pending]
+
+
+def launches(first_pairs: Sequence[int], chunk_size: int) -> list[tuple[int, ...]]:
+    """The chunks of one call grouped into launches: runs of consecutive chunks, each split into pieces of a
+    power of two chunks (largest first), so that a worker compiles at most log2(chunks per call) + 1 launch
+    programs however its calls are cut (a requeued chunk, the tail of an iteration)."""
+    runs: list[list[int]] = []
+    for first in first_pairs:
+        if runs and first == runs[-1][-1] + chunk_size:
+            runs[-1].append(first)
+        else:
+            runs.append([first])
+    pieces = []
+    for run in runs:
+        while run:
+            length = 1 << (len(run).bit_length() - 1)
+            pieces.append(tuple(run[:length]))
+            run = run[length:]
+    return pieces
+
+
+def _launch_noise(chunk_noise, chunks: int, chunk_size: int):
+    """jit(seed, first_pair) -> the noise of ``chunks`` consecutive chunks [chunks * chunk_size, noise_size]:
+    ``chunk_noise`` of each chunk (the function that regenerates it anywhere), one after another."""
+    import jax
+    import jax.numpy as jnp
+
+    def noise(seed, first_pair):
+        firsts = first_pair + chunk_size * jnp.arange(chunks, dtype=jnp.int32)
+        drawn = jax.vmap(chunk_noise, in_axes=(None, 0))(seed, firsts)
+        return drawn.reshape(chunks * chunk_size, drawn.shape[-1])
+
+    return jax.jit(noise)

@@ -99,6 +99,33 @@ def test_chunks_scored_together_in_one_call_score_as_alone_and_keep_their_noise(
         np.testing.assert_array_equal(got, want)
 
 
+def test_consecutive_chunks_go_as_launches_of_a_power_of_two_chunks():
+    assert local_devices.launches([0, 2, 4, 6], 2) == [(0, 2, 4, 6)]
+    assert local_devices.launches([0, 2, 4, 6, 8, 10, 12], 2) == [(0, 2, 4, 6), (8, 10), (12,)]
+    assert local_devices.launches([6, 0, 2, 10], 2) == [(6,), (0, 2), (10,)]  # a requeued chunk breaks a run
+    assert local_devices.launches([], 2) == []
+
+
+@pytest.mark.parametrize("rank", [0, 1])
+def test_a_launch_of_several_chunks_scores_and_keeps_noise_as_each_chunk_alone(rank):
+    """One device call for four chunks: each chunk's scores and its gradient part from the kept noise are the
+    bits the chunk gets alone (and the driver regenerates)."""
+    config = build_config("tiny", population=8, chunk_size=2, perturbation_rank=rank)
+    scorer = local_devices.ChunkScorer(config, max_devices=1)
+    theta, layout = population.flat_params(config, envs.make(config.env, **config.env_kwargs()))
+    theta = np.asarray(theta)
+    firsts = list(range(0, 8, 2))
+    launched = scorer.score_many(theta, SEED, firsts)
+    assert scorer.launch_sizes == (4,)  # one launch of the four chunks, no other program compiled
+    weights = np.linspace(-1, 1, config.chunk_size).astype(np.float32)
+    driver_parts = es.gradient_parts(config, layout.perturbation)
+    kept = [scorer.gradient_part(SEED, first, weights) for first in firsts]
+    assert scorer.regenerated_parts == 0
+    for first, got, part in zip(firsts, launched, kept):
+        np.testing.assert_array_equal(got, scorer.score(theta, SEED, first))
+        np.testing.assert_array_equal(part, driver_parts.regenerated(SEED, first, weights))
+
+
 def test_a_scorer_that_keeps_no_noise_regenerates_every_part(theta_and_reference):
     """Where the driver forms every part (--gradient-on driver, or auto with rank-1 noise on CPU workers)
     nobody asks a worker for one: keeping the noise would only hold memory."""
