@@ -23,6 +23,8 @@ DECODER_INPUTS = ("state", "action", "visits", "value")
 FITNESS_SHAPINGS = ("centered_ranks", "none")
 ACTION_SELECTIONS = ("argmax", "sample")
 SIMULATOR_RANDOMNESS = ("sampled", "foreseen")
+EPISODE_LOOPS = ("until_done", "horizon")
+SIMULATION_LOOPS = ("fori", "unrolled")
 
 
 class ConfigError(ValueError):
@@ -71,6 +73,17 @@ class Config:
     action_selection: str = setting("argmax", flag="--action-selection", choices=ACTION_SELECTIONS,
                                     help="how the action is chosen (sample: a Gumbel-perturbed argmax)")
     action_noise: float = setting(1.0, flag="--action-noise", help="Gumbel scale when action selection is sample")
+    # How the rollout's loops are compiled: the same scores either way (tests/es/test_population.py), a
+    # different count of while loops a step. On a GPU each trip of a data-dependent while loop copies its
+    # condition to the host before the next launch (docs/performance.md).
+    episode_loop: str = setting(
+        "until_done", flag="--episode-loop", choices=EPISODE_LOOPS,
+        help="until_done: stop once every episode of a batch has ended (a data-dependent loop); horizon: always "
+             "play to the horizon (a loop of known length); the same scores")
+    simulation_loop: str = setting(
+        "fori", flag="--simulation-loop", choices=SIMULATION_LOOPS,
+        help="fori: mctx's loop over the simulations; unrolled: the simulations one after another in the program "
+             "(no loop; a longer compile); the same scores")
     # evolution strategies
     population: int = setting(256, flag="--population", help="antithetic pairs per iteration (2x members)")
     # Episodes each member plays per iteration, its score their mean. Not the paper's "Trials: 5": those are
@@ -146,6 +159,8 @@ class Config:
         for item in self.decoder_inputs:
             need(item in DECODER_INPUTS, f"unknown decoder input {item!r} (choose from {', '.join(DECODER_INPUTS)})")
         need_choice("action_selection")
+        need_choice("episode_loop")
+        need_choice("simulation_loop")
         need_choice("simulator_randomness")
         need_choice("fitness_shaping")
         need(isinstance(self.perturbation_rank, int) and self.perturbation_rank >= 0,

@@ -14,6 +14,16 @@ from __future__ import annotations
 
 from typing import Any
 
+# "gpu" sizes the population for one device call of thousands of members. On an H200 one batched agent step
+# (10 simulations) took about 15 ms at population 64 (docs/performance.md, "On a GPU"): launches and loop
+# conditions, not arithmetic, so a step costs about the same for many more members. 1M agent-steps/s at 15 ms a
+# step needs 15,000 members a step: 8,192 pairs are 16,384 members. Chunks stay 256 pairs, the unit of
+# determinism and of the gradient's order of summation; a GPU worker plays its chunks as one launch when it is
+# handed them in one call (--chunks-per-call 32, local_devices.launches). Run it as
+#   pizero train --preset gpu --workers 1 --gpus-per-worker 1 --chunks-per-call 32
+# Not yet measured on a GPU (issue 46's device run will size it).
+_GPU_SIZED: dict[str, Any] = {"population": 8192, "chunk_size": 256}
+
 # "default" is what learns best on a 2-core machine (see docs/tsp.md); "paper" is the paper's table. Its
 # "Trials: 5" are five independent runs (the plots' mean and band), so "paper" plays one episode per member.
 # "default" perturbs each weight matrix with rank-1 noise: at equal wall-clock (3 minutes, 3 seeds) it learns
@@ -26,6 +36,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=10, chance_outcomes=3,
         chunk_size=40,
     ),
+    # A GPU worker's population: see _GPU_SIZED below. Each environment's "default" overrides apply too.
+    "gpu": {"perturbation_rank": 1, **_GPU_SIZED},
     # For tests and smoke runs: compiles in seconds.
     "tiny": dict(
         hidden_size=8, latent_size=8, memory_size=8, num_abstract_actions=2,
@@ -167,4 +179,6 @@ def env_preset(env: str, preset: str) -> dict[str, Any]:
     (an import path, ``--env mypackage.mymodule:make``): the global preset alone applies to those."""
     if env not in ENV_PRESETS:
         return {}
+    if preset == "gpu":  # the environment's default (views, episodes per member), at the GPU's population
+        return {name: value for name, value in ENV_PRESETS[env]["default"].items() if name not in _GPU_SIZED}
     return dict(ENV_PRESETS[env].get(preset, {}))

@@ -2,8 +2,8 @@
 
 ``setting(...)`` is ``dataclasses.field`` with the rest in the field's
 metadata. The command line is generated from ``declared(cls)`` (cli/arguments),
-the options check their values against it, and tests/test_readme_options.py
-holds the README's option table to it. Pure Python: no JAX, no Ray.
+the options check their values against it, and tests/cli/test_reference.py
+holds docs/options.md to it. Pure Python: no JAX, no Ray.
 """
 
 from __future__ import annotations

@@ -30,8 +30,12 @@ class Trajectory(NamedTuple):
     scores: jax.Array  # [E]
 
 
-def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int, record: bool):
-    """(initial states, final states, scores, recorded steps or None): ``envs.base.play`` with the agent."""
+def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int, record: bool,
+          until_all_done: bool = True):
+    """(initial states, final states, scores, recorded steps or None): ``envs.base.play`` with the agent.
+
+    Unrecorded episodes stop once all have ended (``until_all_done``), or always play to the horizon: the same
+    scores, a loop of unknown or of known length."""
     act_key = jax.random.fold_in(key, 1)
     initial_states, observations = jax.vmap(env.reset)(episode_reset_keys(key, num_episodes))
 
@@ -43,13 +47,15 @@ def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_ep
 
     playout = play(jax.vmap(env.step), policy, initial_states, observations, env.spec.horizon, (num_episodes,),
                    policy_carry=agent.initial_memory(num_episodes), record=kept if record else None,
-                   stop_when_all_done=not record)
+                   stop_when_all_done=until_all_done and not record)
     return initial_states, playout.final_state, playout.total_reward, playout.recorded
 
 
-def run_episodes(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int) -> jax.Array:
-    """Plays ``num_episodes`` episodes to the horizon; returns their scores [E]."""
-    return _play(agent, params, env, key, num_episodes, record=False)[2]
+def run_episodes(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int,
+                 until_all_done: bool = True) -> jax.Array:
+    """Plays ``num_episodes`` episodes to the horizon; returns their scores [E]. ``until_all_done``: the loop
+    stops once every episode has ended (the same scores; config.episode_loop "until_done")."""
+    return _play(agent, params, env, key, num_episodes, record=False, until_all_done=until_all_done)[2]
 
 
 def record_episodes(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int) -> Trajectory:

@@ -29,26 +29,47 @@ SearchPolicy = Callable[..., mctx.PolicyOutput]
 MAX_CONSIDERED_ACTIONS = 16  # Gumbel MuZero's default, where a caller does not narrow it
 
 
+def unrolled_fori_loop(lower: int, upper: int, body, init):
+    """``jax.lax.fori_loop``'s contract as straight-line code: ``body`` traced once per index, no while loop.
+
+    mctx takes the loop over simulations as ``loop_fn``. Unrolled, the program
+    has no loop around the simulations (each one's walk down and backup stay
+    mctx's while loops): on a GPU that is one condition copied to the host less
+    per simulation, for a compile that grows with the budget. The index is an
+    int32 as fori_loop's is, so the tree is the same.
+    """
+    value = init
+    for index in range(lower, upper):
+        value = body(jnp.int32(index), value)
+    return value
+
+
+LOOP_FNS = {"fori": jax.lax.fori_loop, "unrolled": unrolled_fori_loop}
+
+
 def make_policy(planner: str, num_simulations: int, root_noise: float, *, pb_c_init: float = 1.25,
                 pb_c_base: float = 19652.0, most_visited: bool = False, temperature: float = 1.0,
-                max_considered_actions: int = MAX_CONSIDERED_ACTIONS) -> SearchPolicy:
+                max_considered_actions: int = MAX_CONSIDERED_ACTIONS, simulation_loop: str = "fori") -> SearchPolicy:
     """mctx's policy for ``planner`` ("muzero": PUCT, root noise the Dirichlet fraction; "gumbel": Gumbel MuZero,
     root noise the Gumbel scale), bound to its hyperparameters.
 
     ``most_visited``: the action is the most visited one (PUCT), else it is
     drawn from the visit counts at ``temperature``. Gumbel MuZero's action is
-    always its own (sequential halving's choice).
+    always its own (sequential halving's choice). ``simulation_loop`` ("fori"
+    or "unrolled", ``LOOP_FNS``) is how the simulations are looped over.
     """
+    loop_fn = LOOP_FNS[simulation_loop]
     if planner == "gumbel":
         policy = functools.partial(mctx.gumbel_muzero_policy, num_simulations=num_simulations,
-                                   gumbel_scale=root_noise, max_num_considered_actions=max_considered_actions)
+                                   gumbel_scale=root_noise, max_num_considered_actions=max_considered_actions,
+                                   loop_fn=loop_fn)
         return _with_invalid_actions(policy)
     if most_visited and root_noise == 0:
         return functools.partial(most_visited_without_root_noise, num_simulations=num_simulations,
-                                 pb_c_init=pb_c_init, pb_c_base=pb_c_base)
+                                 pb_c_init=pb_c_init, pb_c_base=pb_c_base, loop_fn=loop_fn)
     policy = _with_invalid_actions(functools.partial(
         mctx.muzero_policy, num_simulations=num_simulations, dirichlet_fraction=root_noise, temperature=temperature,
-        pb_c_init=pb_c_init, pb_c_base=pb_c_base))
+        pb_c_init=pb_c_init, pb_c_base=pb_c_base, loop_fn=loop_fn))
     return _taking_most_visited(policy) if most_visited else policy
 
 
@@ -68,7 +89,8 @@ def _taking_most_visited(policy: SearchPolicy) -> SearchPolicy:
 
 
 def most_visited_without_root_noise(params, key, root: mctx.RootFnOutput, recurrent_fn, invalid_actions=None, *,
-                                    num_simulations: int, pb_c_init: float, pb_c_base: float) -> mctx.PolicyOutput:
+                                    num_simulations: int, pb_c_init: float, pb_c_base: float,
+                                    loop_fn=jax.lax.fori_loop) -> mctx.PolicyOutput:
     """Exactly ``mctx.muzero_policy``'s tree with a Dirichlet fraction of 0, without sampling the noise; the most
     visited action.
 
@@ -88,7 +110,7 @@ def most_visited_without_root_noise(params, key, root: mctx.RootFnOutput, recurr
     tree = mctx.search(
         params=params, rng_key=search_key, root=root.replace(prior_logits=prior_logits), recurrent_fn=recurrent_fn,
         root_action_selection_fn=functools.partial(selection, depth=0), interior_action_selection_fn=selection,
-        num_simulations=num_simulations, invalid_actions=invalid_actions,
+        num_simulations=num_simulations, invalid_actions=invalid_actions, loop_fn=loop_fn,
     )
     visit_probs = tree.summary().visit_probs
     action = jnp.argmax(visit_probs, axis=-1).astype(jnp.int32)

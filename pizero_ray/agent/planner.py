@@ -80,13 +80,14 @@ def make_planner(config: Config) -> Planner:
         return functools.partial(
             stochastic_muzero_search, num_actions=k, num_outcomes=config.chance_outcomes,
             num_simulations=config.num_simulations, dirichlet_fraction=config.root_noise,
-            pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base, discount=discount)
+            pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base, discount=discount,
+            loop_fn=mcts.LOOP_FNS[config.simulation_loop])
     # PiZero acts on the most visited abstract action (first index on ties), drawing nothing for it. mctx's
     # search still breaks ties between children with a tiny uniform draw from the key (muzero_action_selection):
     # with no root noise the agent is a deterministic function of (parameters, key).
     policy = mcts.make_policy(config.planner, config.num_simulations, config.root_noise,
                               pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base, most_visited=True,
-                              max_considered_actions=k)
+                              max_considered_actions=k, simulation_loop=config.simulation_loop)
     return functools.partial(search, policy=policy, recurrent_fn=_recurrent_fn(k, discount))
 
 
@@ -122,7 +123,7 @@ def search(params, latent, key, *, policy: mcts.SearchPolicy, recurrent_fn) -> P
 
 def stochastic_muzero_search(params, latent, key, *, num_actions: int, num_outcomes: int, num_simulations: int,
                              dirichlet_fraction: float, pb_c_init: float, pb_c_base: float,
-                             discount: float) -> PlanResult:
+                             discount: float, loop_fn=jax.lax.fori_loop) -> PlanResult:
     """Stochastic MuZero search: abstract action -> afterstate -> abstract chance outcome -> state.
 
     The chance outcomes are as invented as everything else in the model: ES
@@ -145,7 +146,7 @@ def stochastic_muzero_search(params, latent, key, *, num_actions: int, num_outco
 
     output = mctx.stochastic_muzero_policy(
         params, key, _root(params, latent), decision_fn, chance_fn, num_simulations,
-        dirichlet_fraction=dirichlet_fraction, pb_c_init=pb_c_init, pb_c_base=pb_c_base,
+        dirichlet_fraction=dirichlet_fraction, pb_c_init=pb_c_init, pb_c_base=pb_c_base, loop_fn=loop_fn,
     )
     abstract_action = jnp.argmax(output.action_weights, axis=-1)
     return PlanResult(abstract_action.astype(jnp.int32), output.action_weights, output.search_tree.summary().value)

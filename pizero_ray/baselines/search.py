@@ -108,7 +108,7 @@ def make_search(config: Config, root_fn, recurrent_fn, training: bool) -> Search
     """The configured mctx search over ``recurrent_fn``, its hyperparameters bound (``agent.mcts``)."""
     policy = mcts.make_policy(config.planner, config.num_simulations, config.root_noise if training else 0.0,
                               pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base,
-                              temperature=1.0 if training else 0.0)
+                              temperature=1.0 if training else 0.0, simulation_loop=config.simulation_loop)
 
     def search(params, observation: Observation, state, key: jax.Array) -> mctx.PolicyOutput:
         root = root_fn(params, observation, state)

@@ -99,13 +99,14 @@ def make_pair_scorer(config: Config, env: Environment, layout: FlatParams):
     seed, pair index) alone.
     """
     agent, sigma, episodes = make_agent(config, env.spec), config.sigma, config.episodes_per_member
+    until_all_done = config.episode_loop == "until_done"
 
     def member_score(theta: jax.Array, episode_key: jax.Array) -> jax.Array:
-        return jnp.mean(run_episodes(agent, layout.unravel(theta), env, episode_key, episodes))
+        return jnp.mean(run_episodes(agent, layout.unravel(theta), env, episode_key, episodes, until_all_done))
 
     def low_rank_member_score(theta: jax.Array, noise: jax.Array, step: jax.Array, episode_key: jax.Array):
         params = perturbed_params(theta, noise, step, layout)
-        return jnp.mean(run_episodes(agent, params, env, episode_key, episodes))
+        return jnp.mean(run_episodes(agent, params, env, episode_key, episodes, until_all_done))
 
     def pair_scores(theta: jax.Array, key: jax.Array, pair_index: jax.Array, noise: jax.Array) -> jax.Array:
         episode_key = es_noise.pair_episode_key(key, pair_index)  # both halves see the same episodes

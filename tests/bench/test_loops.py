@@ -55,3 +55,14 @@ def test_the_rollout_has_an_episode_loop_around_the_simulations_each_a_walk_and_
     assert pair_scorer_loops(config)["data_dependent_loop_shape"] == "?[3[? ?]]"
     without = pair_scorer_loops(dataclasses.replace(config, planner="none"))
     assert without["data_dependent_loop_shape"] == "?"  # the episode loop alone
+
+
+def test_a_horizon_episode_loop_has_a_known_length_and_unrolled_simulations_no_loop():
+    config = build_config("tiny", env="tsp", population=2, chunk_size=2, num_simulations=3)
+    horizon = pair_scorer_loops(dataclasses.replace(config, episode_loop="horizon"))
+    assert horizon["data_dependent_loop_shape"] == "10[3[? ?]]"  # TSP10's 10 steps, known
+    unrolled = pair_scorer_loops(dataclasses.replace(config, simulation_loop="unrolled"))
+    assert unrolled["data_dependent_loop_shape"] == "?[? ? ? ? ? ?]"  # each simulation's walk and backup
+    both = pair_scorer_loops(dataclasses.replace(config, episode_loop="horizon", simulation_loop="unrolled"))
+    assert both["data_dependent_loop_shape"] == "10[? ? ? ? ? ?]"
+    assert both["data_dependent_while_loops"] == 6

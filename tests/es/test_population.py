@@ -89,3 +89,25 @@ def test_low_rank_members_play_exactly_theta_plus_the_expanded_noise(tsp_env, en
     np.testing.assert_allclose(scores, expected, rtol=1e-5)
     assert not np.array_equal(scores[:, 0], scores[:, 1])
     assert layout.perturbation.noise_size < layout.size / 2
+
+
+@pytest.mark.parametrize("env_name, extra", [
+    ("tsp", {}),
+    ("examples.corridor:make", {}),  # episodes that end before the horizon
+    ("2048", {"chance_outcomes": 2, "env_args": {"horizon": 30}}),  # chance nodes
+    ("tsp", {"planner": "gumbel"}),
+])
+def test_the_loops_compiled_do_not_change_the_scores(env_name, extra):
+    """How the episode loop and the simulations are compiled (config.episode_loop, config.simulation_loop)
+    changes the program's while loops, not one bit of any score."""
+    import dataclasses
+
+    import envs
+
+    config = build_config("tiny", env=env_name, population=4, chunk_size=4, **extra)
+    env = envs.make(env_name, **config.env_kwargs())
+    baseline = pair_scorer(config, env)[1](3)
+    for episode_loop in ("until_done", "horizon"):
+        for simulation_loop in ("fori", "unrolled"):
+            variant = dataclasses.replace(config, episode_loop=episode_loop, simulation_loop=simulation_loop)
+            np.testing.assert_array_equal(pair_scorer(variant, env)[1](3), baseline)
