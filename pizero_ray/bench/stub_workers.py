@@ -60,6 +60,9 @@ class StubWorker:
     async def gradient_part(self, seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
         return np.zeros(self._parameters, np.float32)
 
+    async def gradient_parts(self, seed: int, first_pairs: list[int], weights: np.ndarray) -> list[np.ndarray]:
+        return [np.zeros(self._parameters, np.float32) for _ in first_pairs]
+
 
 class _Call(NamedTuple):
     """A stand-in's method: ``.remote(...)`` calls its process's actor."""
@@ -78,6 +81,7 @@ class StandIn:
         self.score_chunks = _Call(lambda theta, seed, first_pairs: actor.score_chunks.remote(
             theta, seed, first_pairs, stand_in=stand_in))
         self.gradient_part = _Call(actor.gradient_part.remote)
+        self.gradient_parts = _Call(actor.gradient_parts.remote)
 
 
 class StubWorkers:

@@ -40,6 +40,9 @@ class GradientParts(NamedTuple):
     part: Callable[[np.ndarray, jax.Array], jax.Array]  # jitted: (weights [C], noise [C, noise_size]) -> [D]
     chunk_size: int
     parameter_size: int
+    # jitted: (weights [n, C], noise [n, C, noise_size]) -> the n chunks' parts [n, D] in one program, each the
+    # bits ``part`` gives it (low-rank noise only: a batch of full-rank products may round otherwise)
+    many: Callable[[np.ndarray, jax.Array], jax.Array] | None = None
 
     def from_noise(self, weights: np.ndarray, noise) -> np.ndarray:
         """The part of a chunk whose noise is at hand (kept from its evaluation, or regenerated)."""
@@ -73,7 +76,12 @@ def gradient_parts(config: Config, perturbation: Perturbation) -> GradientParts:
     def part(weights, noise):
         return weighted_noise_sum(weights, noise, perturbation)
 
-    return GradientParts(jax.jit(noise), jax.jit(part), chunk, perturbation.parameter_size)
+    def many(weights, noise):  # one loop over the rows for every matrix of every chunk: fewer launches on a GPU
+        return jax.vmap(functools.partial(weighted_noise_sum, perturbation=perturbation, one_loop=True))(
+            weights, noise)
+
+    return GradientParts(jax.jit(noise), jax.jit(part), chunk, perturbation.parameter_size,
+                         jax.jit(many) if perturbation.rank > 0 else None)
 
 
 def learning_rate(config: Config) -> float | optax.Schedule:

@@ -318,6 +318,31 @@ class ChunkScorer:
             return self._parts.regenerated(seed, first_pair, weights)
         return self._parts.from_noise(weights, noise)
 
+    def gradient_parts(self, seed: int, first_pairs: Sequence[int], weights: np.ndarray) -> list[np.ndarray]:
+        """Several chunks' parts in one call (weights [n, C]): the same parts as ``gradient_part`` of each.
+
+        With low-rank noise the kept noise of the chunks evaluated on one device
+        goes through one program (``GradientParts.many``): on a GPU a part is a
+        loop of C r trips, so a part per chunk would cost a loop per chunk.
+        """
+        weights = np.asarray(weights, np.float32)
+        kept = {first: self._kept.take(seed, first) for first in first_pairs}
+        parts: dict[int, np.ndarray] = {}
+        by_device: dict = {}
+        for i, first in enumerate(first_pairs):
+            noise = kept[first]
+            if noise is None:
+                parts[first] = self._parts.regenerated(seed, first, weights[i])
+            elif self._parts.many is None:
+                parts[first] = self._parts.from_noise(weights[i], noise)
+            else:
+                by_device.setdefault(next(iter(noise.devices())), []).append(i)
+        for rows in by_device.values():
+            noise = self._jax.numpy.stack([kept[first_pairs[i]] for i in rows])
+            together = np.asarray(self._parts.many(weights[rows], noise), np.float32)
+            parts.update({first_pairs[i]: part for i, part in zip(rows, together)})
+        return [parts[first] for first in first_pairs]
+
     def score_all(self, theta: np.ndarray, seed: int, first_pairs: Sequence[int]) -> list[np.ndarray]:
         """Many chunks, dealt round-robin over the devices and run concurrently (one thread)."""
         self.wait_until_compiled()

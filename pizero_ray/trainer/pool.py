@@ -322,15 +322,30 @@ class WorkerPool:
         return {index: ready[k % len(ready)] for k, index in enumerate(chunks)} if ready else {}
 
     def _ask_for_parts(self, seed: int, weights: np.ndarray, owners: dict) -> dict:
-        """Asks each chunk's owner, if still in the pool, for the chunk's part: {ref: (chunk index, owner)}."""
-        chunk = self._config.chunk_size
-        asked = {}
+        """Asks each chunk's owner, if still in the pool, for the chunk's part: {ref: (chunk indices, owner)}.
+
+        With ``--chunks-per-call`` above 1 a worker is asked for all its chunks' parts in calls of that many
+        (``gradient_parts``), as it was handed them: fewer round trips, and on a GPU one program for each.
+        """
+        chunk, per_call = self._config.chunk_size, self._options.chunks_per_call
+        by_owner: dict = {}
         for index in range(self._config.num_chunks):
             worker = owners.get(index)
-            chunk_weights = weights[index * chunk:(index + 1) * chunk]
-            if worker is not None and worker in self._workers and chunk_weights.any():
-                asked[worker.actor.gradient_part.remote(seed, index * chunk, chunk_weights)] = index, worker
-                self._traffic.to_workers += call_bytes(seed, index * chunk, chunk_weights)
+            if worker is not None and worker in self._workers and weights[index * chunk:(index + 1) * chunk].any():
+                by_owner.setdefault(worker, []).append(index)
+        asked = {}
+        for worker, indices in by_owner.items():
+            for start in range(0, len(indices), per_call):
+                call = tuple(indices[start:start + per_call])
+                firsts = [index * chunk for index in call]
+                if len(call) == 1:
+                    args = (seed, firsts[0], weights[firsts[0]:firsts[0] + chunk])
+                    ref = worker.actor.gradient_part.remote(*args)
+                else:
+                    args = (seed, firsts, np.stack([weights[first:first + chunk] for first in firsts]))
+                    ref = worker.actor.gradient_parts.remote(*args)
+                asked[ref] = call, worker
+                self._traffic.to_workers += call_bytes(*args)
         return asked
 
     def _collect_parts(self, asked: dict, should_stop: Callable[[], bool]) -> dict[int, np.ndarray]:
@@ -349,12 +364,14 @@ class WorkerPool:
                 break  # slow workers: their parts are computed here
             ready_refs, _ = ray.wait(list(waiting), num_returns=len(waiting), timeout=min(POLL_S, left))
             for ref in ready_refs:
-                index, worker = waiting.pop(ref)
+                indices, worker = waiting.pop(ref)
                 try:
-                    parts[index] = ray.get(ref, timeout=POLL_S)
-                    self._traffic.from_workers += serialized_bytes(parts[index])
+                    answer = ray.get(ref, timeout=POLL_S)
+                    self._traffic.from_workers += serialized_bytes(answer)
+                    parts.update(zip(indices, answer if len(indices) > 1 else [answer]))
                 except RayTaskError as error:
-                    raise TrainingError(f"a worker failed computing chunk {index}'s gradient part: {error}") from None
+                    raise TrainingError(f"a worker failed computing chunk {indices[0]}'s gradient part: "
+                                        f"{error}") from None
                 except GetTimeoutError:
                     pass  # (a RayError too) slow, not dead: the part is computed elsewhere
                 except RayError:

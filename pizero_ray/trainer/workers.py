@@ -67,6 +67,10 @@ class RolloutWorker:
         """The chunk's share of the pseudo-gradient, from the noise kept while evaluating it."""
         return self._chunks.gradient_part(iteration_seed, first_pair, weights)
 
+    def gradient_parts(self, iteration_seed: int, first_pairs: list[int], weights: np.ndarray) -> list[np.ndarray]:
+        """Several chunks' shares (weights [n, C]) in one call, each as ``gradient_part`` gives it."""
+        return self._chunks.gradient_parts(iteration_seed, first_pairs, weights)
+
 
 def start_worker(
     config_json: str, num_cpus: float, num_gpus: float, compile_cache_dir: str | None, resources: dict | None = None,

@@ -96,6 +96,10 @@ def test_a_weighted_chunk_sum_of_low_rank_noise_is_the_sum_of_expanded_direction
                                rtol=1e-5, atol=1e-5)
     chunk = es.chunk_noise(key, jnp.int32(4), 3, perturbation.noise_size)
     np.testing.assert_array_equal(np.asarray(chunk[1]), np.asarray(noise[5]))
+    # Every matrix's sum in one loop (GPU workers): the same additions in the same order, the same bits.
+    one_loop = jax.jit(lambda w, z: es.weighted_noise_sum(w, z, perturbation, one_loop=True))
+    per_matrix = jax.jit(lambda w, z: es.weighted_noise_sum(w, z, perturbation))
+    np.testing.assert_array_equal(one_loop(weights, jnp.stack(noise)), per_matrix(weights, jnp.stack(noise)))
 
 
 

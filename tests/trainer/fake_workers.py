@@ -65,6 +65,9 @@ def use(monkeypatch, config, hang_on=None, part_delay_s: float = 0.0, sigterm_on
             time.sleep(part_delay_s)
             return np.zeros(size, np.float32)
 
+        def gradient_parts(self, seed, first_pairs, weights):
+            return [self.gradient_part(seed, first_pair, row) for first_pair, row in zip(first_pairs, weights)]
+
     def start_worker(*args, **kwargs):
         import ray
         return ray.remote(FakeWorker).options(num_cpus=0, max_concurrency=2).remote()

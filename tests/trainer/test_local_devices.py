@@ -124,6 +124,14 @@ def test_a_launch_of_several_chunks_scores_and_keeps_noise_as_each_chunk_alone(r
     for first, got, part in zip(firsts, launched, kept):
         np.testing.assert_array_equal(got, scorer.score(theta, SEED, first))
         np.testing.assert_array_equal(part, driver_parts.regenerated(SEED, first, weights))
+    # The parts of a call's chunks in one call (one program for low-rank noise): the same bits again.
+    scorer.score_many(theta, SEED + 1, firsts)
+    several = np.stack([weights * (k + 1) for k in range(len(firsts))])
+    together = scorer.gradient_parts(SEED + 1, firsts, several)
+    assert scorer.regenerated_parts == 0
+    for first, row, part in zip(firsts, several, together):
+        np.testing.assert_array_equal(part, driver_parts.regenerated(SEED + 1, first, row))
+    assert scorer.gradient_parts(SEED + 1, firsts[:1], several[:1])[0].shape == (layout.size,)  # none kept: made
 
 
 def test_a_scorer_that_keeps_no_noise_regenerates_every_part(theta_and_reference):

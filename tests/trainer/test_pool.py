@@ -18,10 +18,10 @@ ITERATIONS = 4
 CONFIG = build_config("tiny", population=8, planner="none")
 
 
-def _train(path, compile_cache_dir, on_iteration=None, **options):
-    run_dir.write_config(path, CONFIG)
+def _train(path, compile_cache_dir, on_iteration=None, config=CONFIG, **options):
+    run_dir.write_config(path, config)
     options = {"workers": 2, "checkpoint_every": 0, **options}
-    result = driver.train(path, CONFIG, driver.RunOptions.create(iterations=ITERATIONS, compile_cache=compile_cache_dir,
+    result = driver.train(path, config, driver.RunOptions.create(iterations=ITERATIONS, compile_cache=compile_cache_dir,
                                                                  **options), on_iteration=on_iteration)
     return result, [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
 
@@ -45,6 +45,17 @@ def test_several_chunks_per_call_give_the_same_parameters(tmp_path, compile_cach
     result, rows = _train(tmp_path, compile_cache_dir, chunks_per_call=3)  # 4 chunks: calls of 3 and 1
     assert result["parameter_hash"] == reference_hash
     assert all(row["pairs_evaluated"] == CONFIG.population for row in rows)
+
+
+def test_low_rank_parts_of_a_call_formed_together_on_the_workers_equal_the_drivers(tmp_path, compile_cache_dir):
+    """Rank-1 noise, calls of 4 chunks: each worker forms its chunks' parts in one program (GradientParts.many),
+    as GPU workers do; the parameters are the ones the driver's parts give."""
+    config = dataclasses.replace(CONFIG, perturbation_rank=1)
+    on_workers, rows = _train(tmp_path / "workers", compile_cache_dir, config=config, workers=1, chunks_per_call=4,
+                              gradient_on="workers")
+    assert all(row["gradient_parts_on_driver"] == 0 for row in rows)  # every part came from the worker
+    on_driver, _ = _train(tmp_path / "driver", compile_cache_dir, config=config, workers=1, gradient_on="driver")
+    assert on_workers["parameter_hash"] == on_driver["parameter_hash"]
 
 
 def test_sigkilled_workers_mid_iteration(tmp_path, compile_cache_dir, reference_hash):
