@@ -105,6 +105,14 @@ class Config:
     chunk_size: int = setting(32, flag="--chunk-size",
                               help="pairs per unit of work (divides the population); fixed so results never "
                                    "depend on the workers")
+    # A launch's members are what fills a GPU: a step costs about as much for thousands as for 64. Fixed by the
+    # config, not by how chunks are handed out, because a bigger launch may round differently (XLA picks its
+    # kernels by shape: on 2 CPU cores, 8 chunks of 32 pairs of the bench agent launched together scored other
+    # bits than each alone), and the parameters must not depend on the workers.
+    chunks_per_launch: int = setting(
+        1, flag="--chunks-per-launch",
+        help="chunks a worker plays in one device call, grouped by index (chunks 0..L-1, L..2L-1, ...): a GPU "
+             "worker's batch; part of what is computed, so it changes the scores' last bits")
     seed: int = setting(0, flag="--seed", help="the run's seed")
     # A curriculum's next stage starts where another run stands. The parameters only: Adam starts afresh at
     # iteration 0, and the iterations' noise still comes from seed.
@@ -141,7 +149,7 @@ class Config:
         need_choice("method")
         self._validate_env()
         for name in ("hidden_size", "latent_size", "memory_size", "num_abstract_actions",
-                     "population", "episodes_per_member", "chunk_size"):
+                     "population", "episodes_per_member", "chunk_size", "chunks_per_launch"):
             value = getattr(self, name)
             need(isinstance(value, int) and value > 0, f"{name} must be a positive integer, got {value!r}")
         need_choice("planner")
@@ -177,6 +185,9 @@ class Config:
         need(0 < self.abstract_discount <= 1, f"abstract_discount must be in (0, 1], got {self.abstract_discount}")
         need(self.population % self.chunk_size == 0,
              f"population {self.population} is not a multiple of chunk_size {self.chunk_size}")
+        need(self.population % (self.chunk_size * self.chunks_per_launch) == 0,
+             f"population {self.population} is not a multiple of chunk_size {self.chunk_size} x chunks_per_launch "
+             f"{self.chunks_per_launch}")
         need(0 <= self.seed < 2**32, f"seed must be in [0, 2^32), got {self.seed}")
         self._validate_method()
         return self

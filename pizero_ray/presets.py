@@ -14,15 +14,14 @@ from __future__ import annotations
 
 from typing import Any
 
-# "gpu" sizes the population for one device call of thousands of members. On an H200 one batched agent step
-# (10 simulations) took about 15 ms at population 64 (docs/performance.md, "On a GPU"): launches and loop
-# conditions, not arithmetic, so a step costs about the same for many more members. 1M agent-steps/s at 15 ms a
-# step needs 15,000 members a step: 8,192 pairs are 16,384 members. Chunks stay 256 pairs, the unit of
-# determinism and of the gradient's order of summation; a GPU worker plays its chunks as one launch when it is
-# handed them in one call (--chunks-per-call 32, local_devices.launches). Run it as
-#   pizero train --preset gpu --workers 1 --gpus-per-worker 1 --chunks-per-call 32
-# Not yet measured on a GPU (issue 46's device run will size it).
-_GPU_SIZED: dict[str, Any] = {"population": 8192, "chunk_size": 256}
+# "gpu" sizes a worker's device call. On an H200 one batched agent step (10 simulations) took about 15 ms at
+# population 64 (docs/performance.md, "On a GPU"): launches and loop conditions, not arithmetic, so a step
+# costs about the same for many more members. 1M agent-steps/s at 15 ms a step needs 15,000 members a step: a
+# launch of 32 chunks of 256 pairs is 16,384 members. Chunks stay 256 pairs (the gradient's unit and order of
+# summation); two launches an iteration, so that two workers sharing a GPU each have one. Run it as
+#   pizero train --preset gpu --workers 1 --gpus-per-worker 1
+# Sized from that one measurement, not yet measured itself (issue 46's device run will).
+_GPU_SIZED: dict[str, Any] = {"population": 16384, "chunk_size": 256, "chunks_per_launch": 32}
 
 # "default" is what learns best on a 2-core machine (see docs/tsp.md); "paper" is the paper's table. Its
 # "Trials: 5" are five independent runs (the plots' mean and band), so "paper" plays one episode per member.

@@ -64,6 +64,7 @@ OLD_DEFAULTS["simulator_randomness"] = "sampled"
 OLD_DEFAULTS["lr_decay_iterations"] = 0  # a constant step size unless asked
 # How the rollout's loops are compiled (issue 46): the same scores either way; mctx's loops by default.
 OLD_DEFAULTS.update({"episode_loop": "until_done", "simulation_loop": "fori"})
+OLD_DEFAULTS["chunks_per_launch"] = 1  # a worker's device call: one chunk unless asked (issue 46)
 # The default preset's rank-1 noise (issue 14: at least as good as full rank on every environment at equal time).
 DEFAULT = {"perturbation_rank": 1}
 # The paper preset played 5 episodes per member until issue 14: the paper's "Trials: 5" are 5 runs.
@@ -202,11 +203,12 @@ def test_the_gpu_preset_keeps_each_environments_default_at_a_device_sized_popula
     for env in envs.ENV_NAMES:
         config = build_config("gpu", env=env)  # validates
         default = build_config("default", env=env)
-        assert (config.population, config.chunk_size, config.perturbation_rank) == (8192, 256, 1)
+        assert (config.population, config.chunk_size, config.chunks_per_launch, config.perturbation_rank) == (
+            16384, 256, 32, 1)
         assert config.env_args == default.env_args  # the views and horizons of the default
         assert config.episodes_per_member == default.episodes_per_member
     assert dict(build_config("gpu", env="sokoban").env_args)["view"] == "centred"
-    assert build_config("gpu", env="tsp", population=64, chunk_size=16).population == 64  # flags still win
+    assert build_config("gpu", env="tsp", population=64, chunk_size=16, chunks_per_launch=4).population == 64
 
 
 # --------------------------------------------------------------------------- settings declared once

@@ -192,11 +192,17 @@ class ChunkScorer:
         self._parts = es.gradient_parts(config, layout.perturbation)
         chunk_noise_bytes = config.chunk_size * layout.perturbation.noise_size * 4
         self._kept = NoiseCache(chunk_noise_bytes, max_bytes=None if keep_noise else 0)  # 0: keeps nothing
+        # Scores of chunks launched with one asked for, until they are asked for too (a chunk handed on alone,
+        # after a fault, still runs its whole launch: its scores are that launch's).
+        self._spare_scores = NoiseCache(config.chunk_size * 2 * 4)
+        self._launch_pairs = config.chunk_size * config.chunks_per_launch
+        self.launches_run = 0  # device calls of the rollout so far
 
-        def compile_for(device, chunks: int = 1):
-            """The noise and score programs for a launch of ``chunks`` consecutive chunks on ``device``."""
+        def compile_for(device):
+            """The noise and score programs for one launch (``chunks_per_launch`` chunks) on ``device``."""
             on = SingleDeviceSharding(device)
             seed = jax.ShapeDtypeStruct((), jnp.uint32, sharding=on)
+            chunks = config.chunks_per_launch
             pairs = chunks * config.chunk_size
             make_noise = self._parts.noise if chunks == 1 else _launch_noise(self._parts.noise, chunks,
                                                                              config.chunk_size)
@@ -208,10 +214,6 @@ class ChunkScorer:
                 jax.ShapeDtypeStruct((pairs, layout.perturbation.noise_size), jnp.float32, sharding=on),
             ).compile()
             return noise, scores
-
-        self._compile_for = compile_for
-        self._launches: dict[tuple[int, int], tuple] = {}  # (device index, chunks) -> programs, compiled on use
-        self._launch_lock = threading.Lock()
 
         # The first device's programs are compiled now, so that a worker is ready
         # as soon as it can return a chunk; the others (the same programs for
@@ -244,71 +246,57 @@ class ChunkScorer:
         return len(self.devices)
 
     @property
-    def launch_sizes(self) -> tuple[int, ...]:
-        """The launches of several chunks this scorer has compiled programs for, in chunks."""
-        return tuple(sorted({chunks for _, chunks in self._launches}))
-
-    @property
     def regenerated_parts(self) -> int:
         """Gradient parts this scorer had to regenerate the noise for (it had not kept it)."""
         return self._kept.misses
 
-    def _programs(self, index: int, chunks: int):
-        """Device ``index``'s programs for a launch of ``chunks`` chunks (compiled on first use, beyond one)."""
-        if chunks == 1:
-            return self._compiled[index]
-        with self._launch_lock:
-            if (index, chunks) not in self._launches:
-                self._launches[(index, chunks)] = self._compile_for(self.devices[index], chunks)
-            return self._launches[(index, chunks)]
-
-    def _dispatch(self, index: int, theta, seed: int, first_pair: int, chunks: int = 1):
-        """Starts ``chunks`` consecutive chunks from ``first_pair`` on device ``index`` as one launch; returns
-        their (not yet ready) scores and noise, the chunks' rows one after another."""
+    def _dispatch(self, index: int, theta, seed: int, launch_first: int):
+        """Starts the launch whose first pair is ``launch_first`` on device ``index``; returns its (not yet ready)
+        scores and noise, its chunks' rows one after another."""
+        self.launches_run += 1
         device = self.devices[index]
-        pairs = np.arange(first_pair, first_pair + chunks * self.config.chunk_size, dtype=np.int32)
+        pairs = np.arange(launch_first, launch_first + self._launch_pairs, dtype=np.int32)
         put = self._jax.device_put
-        make_noise, score = self._programs(index, chunks)
+        make_noise, score = self._compiled[index]
         seed = put(np.uint32(seed), device)
-        noise = make_noise(seed, put(np.int32(first_pair), device))
+        noise = make_noise(seed, put(np.int32(launch_first), device))
         return score(put(theta, device), seed, put(pairs, device), noise), noise
+
+    def _launch_of(self, first_pair: int) -> int:
+        return first_pair - first_pair % self._launch_pairs
 
     def score(self, theta: np.ndarray, seed: int, first_pair: int) -> np.ndarray:
         """Scores [chunk_size, 2] of the pairs from ``first_pair`` on, on whichever device is free."""
-        index = self._free.get()
-        try:
-            scores, noise = self._dispatch(index, np.asarray(theta, np.float32), seed, first_pair)
-            scores = np.asarray(scores, np.float32)
-        finally:
-            self._free.put(index)
-        self._kept.keep(seed, first_pair, noise)
-        return scores
+        return self.score_many(theta, seed, [first_pair])[0]
 
     def score_many(self, theta: np.ndarray, seed: int, first_pairs: Sequence[int]) -> list[np.ndarray]:
-        """Several chunks on one free device (a call of ``--chunks-per-call``): the parameters go to it once, and
-        consecutive chunks go as one launch of all their pairs (``launches``), every launch started before the
-        first result is waited for. Each chunk's scores are the ones ``score`` gives it (a pair's episodes and
-        noise come from its index alone; tests/trainer/test_local_devices.py), and its noise is kept as
-        ``score`` keeps it.
-
-        On a GPU a launch of many chunks is what fills the device: a step of the rollout costs about as much
-        for 64 members as for thousands, so chunks one after another would leave it mostly idle.
+        """Chunks' scores [chunk_size, 2] on one free device: the parameters go to it once, and each launch
+        (``chunks_per_launch`` chunks, grouped by index) that holds a chunk asked for is started before the
+        first result is waited for. A launch's other chunks keep their scores until asked for; every launched
+        chunk keeps its noise for its gradient part. A chunk's scores are its launch's, however it is asked
+        for: the parameters do not depend on how chunks are handed out.
         """
         size = self.config.chunk_size
+        scores = {first: self._spare_scores.take(seed, first) for first in first_pairs}
+        launches = list(dict.fromkeys(self._launch_of(first) for first, got in scores.items() if got is None))
+        if not launches:
+            return [scores[first] for first in first_pairs]
         index = self._free.get()
         try:
             on_device = self._jax.device_put(np.asarray(theta, np.float32), self.devices[index])
-            started = [(firsts, self._dispatch(index, on_device, seed, firsts[0], len(firsts)))
-                       for firsts in launches(first_pairs, size)]
-            scores = {}
-            for firsts, (launch_scores, _) in started:
-                launch_scores = np.asarray(launch_scores, np.float32)
-                scores.update({first: launch_scores[i * size:(i + 1) * size] for i, first in enumerate(firsts)})
+            started = [(launch, self._dispatch(index, on_device, seed, launch)) for launch in launches]
+            launched = {launch: np.asarray(launch_scores, np.float32) for launch, (launch_scores, _) in started}
         finally:
             self._free.put(index)
-        for firsts, (_, noise) in started:
-            for i, first in enumerate(firsts):
-                self._kept.keep(seed, first, noise if len(firsts) == 1 else noise[i * size:(i + 1) * size])
+        whole = self.config.chunks_per_launch == 1
+        for launch, (_, noise) in started:
+            for offset in range(0, self._launch_pairs, size):
+                first, rows = launch + offset, launched[launch][offset:offset + size]
+                if first not in scores:
+                    self._spare_scores.keep(seed, first, rows)
+                elif scores[first] is None:
+                    scores[first] = rows
+                self._kept.keep(seed, first, noise if whole else noise[offset:offset + size])
         return [scores[first] for first in first_pairs]
 
     def gradient_part(self, seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
@@ -344,33 +332,16 @@ class ChunkScorer:
         return [parts[first] for first in first_pairs]
 
     def score_all(self, theta: np.ndarray, seed: int, first_pairs: Sequence[int]) -> list[np.ndarray]:
-        """Many chunks, dealt round-robin over the devices and run concurrently (one thread)."""
+        """Many chunks, their launches dealt round-robin over the devices and run concurrently (one thread)."""
         self.wait_until_compiled()
         theta = np.asarray(theta, np.float32)
         on_device = [self._jax.device_put(theta, device) for device in self.devices]
-        pending = [self._dispatch(i % self.num_devices, on_device[i % self.num_devices], seed, first)
-                   for i, first in enumerate(first_pairs)]
-        return [np.asarray(scores, np.float32) for scores, _ in pending]
-
-
-def launches(first_pairs: Sequence[int], chunk_size: int) -> list[tuple[int, ...]]:
-    """The chunks of one call grouped into launches: runs of consecutive chunks, each split into pieces of a
-    power of two chunks (largest first), so that a worker compiles at most log2(chunks per call) + 1 launch
-    programs however its calls are cut (a requeued chunk, the tail of an iteration)."""
-    runs: list[list[int]] = []
-    for first in first_pairs:
-        if runs and first == runs[-1][-1] + chunk_size:
-            runs[-1].append(first)
-        else:
-            runs.append([first])
-    pieces = []
-    for run in runs:
-        while run:
-            length = 1 << (len(run).bit_length() - 1)
-            pieces.append(tuple(run[:length]))
-            run = run[length:]
-    return pieces
-
+        launches = list(dict.fromkeys(self._launch_of(first) for first in first_pairs))
+        pending = {launch: self._dispatch(i % self.num_devices, on_device[i % self.num_devices], seed, launch)[0]
+                   for i, launch in enumerate(launches)}
+        launched = {launch: np.asarray(scores, np.float32) for launch, scores in pending.items()}
+        size = self.config.chunk_size
+        return [launched[self._launch_of(first)][first % self._launch_pairs:][:size] for first in first_pairs]
 
 def _launch_noise(chunk_noise, chunks: int, chunk_size: int):
     """jit(seed, first_pair) -> the noise of ``chunks`` consecutive chunks [chunks * chunk_size, noise_size]:

@@ -284,6 +284,11 @@ class WorkerPool:
                 f"cluster has {ray.available_resources()} available)"
             )
 
+    @property
+    def chunks_per_call(self) -> int:
+        """Chunks handed to a worker in one call: ``--chunks-per-call``, and never fewer than a launch's."""
+        return max(self._options.chunks_per_call, self._config.chunks_per_launch)
+
     def gradient_parts(
         self, seed: int, weights: np.ndarray, owners: dict, compute_here: Callable[[int], np.ndarray],
         should_stop: Callable[[], bool] = lambda: False,
@@ -327,7 +332,7 @@ class WorkerPool:
         With ``--chunks-per-call`` above 1 a worker is asked for all its chunks' parts in calls of that many
         (``gradient_parts``), as it was handed them: fewer round trips, and on a GPU one program for each.
         """
-        chunk, per_call = self._config.chunk_size, self._options.chunks_per_call
+        chunk, per_call = self._config.chunk_size, self.chunks_per_call
         by_owner: dict = {}
         for index in range(self._config.num_chunks):
             worker = owners.get(index)
@@ -435,7 +440,7 @@ class _ChunkQueue:
             for worker in open_workers:
                 if not self.pending:
                     break
-                count = min(options.chunks_per_call, len(self.pending))
+                count = min(self.pool.chunks_per_call, len(self.pending))
                 self._hand(worker, tuple(self.pending.popleft() for _ in range(count)))
 
     def _hand(self, worker: _Worker, indices: tuple[int, ...]) -> None:

@@ -77,3 +77,59 @@ def test_one_and_two_gpu_workers_give_the_same_parameters(ray_cluster, tmp_path,
     untrained = np.asarray(population.flat_params(config, envs.make("tsp"))[0])
     assert hashes[1] == hashes[2]
     assert hashes[1] != runs.parameter_hash(untrained)  # training moved the parameters
+
+
+@pytest.mark.parametrize("rank", [0, 1])
+def test_a_launchs_chunks_score_and_form_parts_the_same_however_they_are_asked_for_on_the_gpu(rank):
+    """--chunks-per-launch 8 on the GPU: a chunk asked for alone scores as in its whole launch, and the parts of
+    a call, formed in one program, are the bits a GPU regenerates for each chunk (a surviving GPU worker
+    regenerates a lost chunk's part)."""
+    import jax
+
+    import envs
+    from pizero_ray import es
+    from pizero_ray.es import population
+    from pizero_ray.trainer import local_devices
+
+    config = build_config("default", env="tsp", population=256, chunk_size=32, chunks_per_launch=8,
+                          perturbation_rank=rank)
+    theta = np.asarray(population.flat_params(config, envs.make("tsp"))[0])
+    layout = population.flat_params(config, envs.make("tsp"))[1]
+    firsts = list(range(0, 256, 32))
+    together = local_devices.ChunkScorer(config, max_devices=1)
+    assert together.devices[0].platform == "gpu"
+    launched = together.score_many(theta, 7, firsts)
+    alone = local_devices.ChunkScorer(config, max_devices=1)
+    np.testing.assert_array_equal(alone.score(theta, 7, 96), launched[3])
+    weights = np.random.default_rng(1).standard_normal((len(firsts), 32)).astype(np.float32)
+    parts = together.gradient_parts(7, firsts, weights)
+    assert together.regenerated_parts == 0
+    with jax.default_device(_gpus()[0]):
+        regenerate = es.gradient_parts(config, layout.perturbation).regenerated
+        for first, part, row in zip(firsts, parts, weights):
+            np.testing.assert_array_equal(part, regenerate(7, first, row))
+
+
+def test_the_loops_compiled_do_not_change_the_scores_on_the_gpu():
+    """--episode-loop horizon and --simulation-loop unrolled change the program's while loops on the GPU, not its
+    scores (the GPU's own fusions and kernels may differ from the CPU's)."""
+    import dataclasses
+
+    from pizero_ray.trainer import local_devices
+
+    config = build_config("default", env="tsp", population=64, chunk_size=64)
+    theta = None
+    scores = {}
+    for episode_loop in ("until_done", "horizon"):
+        for simulation_loop in ("fori", "unrolled"):
+            variant = dataclasses.replace(config, episode_loop=episode_loop, simulation_loop=simulation_loop)
+            chunks = local_devices.ChunkScorer(variant, max_devices=1)
+            if theta is None:
+                import envs
+                from pizero_ray.es import population
+
+                theta = np.asarray(population.flat_params(config, envs.make("tsp"))[0])
+            scores[(episode_loop, simulation_loop)] = chunks.score(theta, 3, 0)
+    first = scores[("until_done", "fori")]
+    for variant, got in scores.items():
+        np.testing.assert_array_equal(got, first, err_msg=str(variant))

@@ -99,39 +99,38 @@ def test_chunks_scored_together_in_one_call_score_as_alone_and_keep_their_noise(
         np.testing.assert_array_equal(got, want)
 
 
-def test_consecutive_chunks_go_as_launches_of_a_power_of_two_chunks():
-    assert local_devices.launches([0, 2, 4, 6], 2) == [(0, 2, 4, 6)]
-    assert local_devices.launches([0, 2, 4, 6, 8, 10, 12], 2) == [(0, 2, 4, 6), (8, 10), (12,)]
-    assert local_devices.launches([6, 0, 2, 10], 2) == [(6,), (0, 2), (10,)]  # a requeued chunk breaks a run
-    assert local_devices.launches([], 2) == []
-
-
 @pytest.mark.parametrize("rank", [0, 1])
-def test_a_launch_of_several_chunks_scores_and_keeps_noise_as_each_chunk_alone(rank):
-    """One device call for four chunks: each chunk's scores and its gradient part from the kept noise are the
-    bits the chunk gets alone (and the driver regenerates)."""
-    config = build_config("tiny", population=8, chunk_size=2, perturbation_rank=rank)
-    scorer = local_devices.ChunkScorer(config, max_devices=1)
+def test_a_launchs_chunks_score_and_form_parts_the_same_however_they_are_asked_for(rank):
+    """--chunks-per-launch 4: the four chunks run as one device call, whether asked for together, alone or out of
+    order; a chunk asked for after its launch ran is served from it. Each chunk's part from the kept noise (the
+    parts of a call in one program) is the bits the driver regenerates."""
+    config = build_config("tiny", population=16, chunk_size=2, chunks_per_launch=4, perturbation_rank=rank)
     theta, layout = population.flat_params(config, envs.make(config.env, **config.env_kwargs()))
     theta = np.asarray(theta)
-    firsts = list(range(0, 8, 2))
-    launched = scorer.score_many(theta, SEED, firsts)
-    assert scorer.launch_sizes == (4,)  # one launch of the four chunks, no other program compiled
-    weights = np.linspace(-1, 1, config.chunk_size).astype(np.float32)
+    firsts = list(range(0, 16, 2))
+    together = local_devices.ChunkScorer(config, max_devices=1)
+    expected = together.score_many(theta, SEED, firsts)
+    assert together.launches_run == 2
+    piecemeal = local_devices.ChunkScorer(config, max_devices=1)
+    got = {6: piecemeal.score(theta, SEED, 6)}  # runs chunks 0-3's launch
+    got.update(zip([2, 0], piecemeal.score_many(theta, SEED, [2, 0])))  # kept from that launch
+    assert piecemeal.launches_run == 1
+    got.update(zip([14, 4, 8], piecemeal.score_many(theta, SEED, [14, 4, 8])))
+    assert piecemeal.launches_run == 2
+    for first, want in zip(firsts, expected):
+        if first in got:
+            np.testing.assert_array_equal(got[first], want)
+    weights = np.stack([np.linspace(-1, 1, 2) * (k + 1) for k in range(len(firsts))]).astype(np.float32)
     driver_parts = es.gradient_parts(config, layout.perturbation)
-    kept = [scorer.gradient_part(SEED, first, weights) for first in firsts]
-    assert scorer.regenerated_parts == 0
-    for first, got, part in zip(firsts, launched, kept):
-        np.testing.assert_array_equal(got, scorer.score(theta, SEED, first))
-        np.testing.assert_array_equal(part, driver_parts.regenerated(SEED, first, weights))
-    # The parts of a call's chunks in one call (one program for low-rank noise): the same bits again.
-    scorer.score_many(theta, SEED + 1, firsts)
-    several = np.stack([weights * (k + 1) for k in range(len(firsts))])
-    together = scorer.gradient_parts(SEED + 1, firsts, several)
-    assert scorer.regenerated_parts == 0
-    for first, row, part in zip(firsts, several, together):
-        np.testing.assert_array_equal(part, driver_parts.regenerated(SEED + 1, first, row))
-    assert scorer.gradient_parts(SEED + 1, firsts[:1], several[:1])[0].shape == (layout.size,)  # none kept: made
+    parts = together.gradient_parts(SEED, firsts, weights)
+    assert together.regenerated_parts == 0
+    for first, row, part in zip(firsts, weights, parts):
+        np.testing.assert_array_equal(part, driver_parts.regenerated(SEED, first, row))
+
+
+def test_chunks_per_launch_must_divide_the_population():
+    with pytest.raises(ValueError, match="population 8 is not a multiple of chunk_size 2 x chunks_per_launch 3"):
+        build_config("tiny", population=8, chunk_size=2, chunks_per_launch=3)
 
 
 def test_a_scorer_that_keeps_no_noise_regenerates_every_part(theta_and_reference):

@@ -58,6 +58,17 @@ def test_low_rank_parts_of_a_call_formed_together_on_the_workers_equal_the_drive
     assert on_workers["parameter_hash"] == on_driver["parameter_hash"]
 
 
+def test_launches_of_two_chunks_give_the_same_parameters_on_any_workers_and_through_a_kill(
+        tmp_path, compile_cache_dir):
+    """--chunks-per-launch 2: the pool hands a worker whole launches; a kill hands a launch's chunks on, and the
+    worker that takes them runs the same launch: one worker or two, killed or not, the same parameters."""
+    config = dataclasses.replace(CONFIG, chunks_per_launch=2)
+    alone, _ = _train(tmp_path / "one", compile_cache_dir, config=config, workers=1)
+    killed, rows = _train(tmp_path / "two", compile_cache_dir, config=config, kill_schedule=frozenset({(1, 2)}))
+    assert killed["workers_killed"] == 1 and sum(row["requeued_chunks"] for row in rows) >= 2
+    assert killed["parameter_hash"] == alone["parameter_hash"]
+
+
 def test_sigkilled_workers_mid_iteration(tmp_path, compile_cache_dir, reference_hash):
     # Right after chunk 0 of iteration 1 and chunk 3 of iteration 2 are handed out,
     # the process holding them is SIGKILLed.
