@@ -21,11 +21,9 @@ its own outcome, so one failing step still leaves the others' measurements.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -33,87 +31,9 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from device_common import ROOT, gpu_names, last_json, python_environment, report_header, report_path, run, save_report
+
 TRAININGS = (("tsp", ()), ("collect", ()))  # (env, extra train options)
-
-
-def gpu_names() -> list[str]:
-    """The NVIDIA GPUs nvidia-smi lists ([] where there is none, or no driver)."""
-    if shutil.which("nvidia-smi") is None:
-        return []
-    try:
-        listed = subprocess.run(["nvidia-smi", "--query-gpu=name,memory.total", "--format=csv,noheader"],
-                                capture_output=True, text=True, timeout=60)
-    except (OSError, subprocess.TimeoutExpired):
-        return []
-    return [line.strip() for line in listed.stdout.splitlines() if line.strip()] if listed.returncode == 0 else []
-
-
-def run(command: list[str], env: dict, timeout_s: float, log: Path | None = None) -> dict:
-    """Runs a command to completion or its deadline; its outcome, time and output tail."""
-    started = time.time()
-    with tempfile.TemporaryFile("w+") as output:
-        process = subprocess.Popen(command, cwd=ROOT, env=env, stdout=output, stderr=subprocess.STDOUT, text=True,
-                                   start_new_session=True)
-        try:
-            code = process.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            code = process.wait()
-        output.seek(0)
-        text = output.read()
-    if log is not None:
-        log.write_text(text)
-    timed_out = time.time() - started >= timeout_s
-    return {"command": " ".join(command), "exit_code": code, "timed_out": timed_out,
-            "seconds": round(time.time() - started, 1), "output_tail": text[-3000:]}
-
-
-def install_wheels(python: str, wheels: Path, target: Path) -> list[str]:
-    """Installs the wheels in ``wheels`` whose package ``python`` lacks (or has older) into ``target``."""
-    probe = ("import importlib.metadata as m, sys\n"
-             "from packaging.version import Version\n"
-             "name, version = sys.argv[1:]\n"
-             "try:\n    sys.exit(0 if Version(m.version(name)) >= Version(version) else 1)\n"
-             "except m.PackageNotFoundError:\n    sys.exit(1)\n")
-    needed = []
-    for wheel in sorted(wheels.glob("*.whl")):
-        name, version = wheel.name.split("-")[:2]
-        if subprocess.run([python, "-c", probe, name, version]).returncode != 0:
-            needed.append(wheel)
-    if needed:
-        subprocess.run([python, "-m", "pip", "install", "-q", "--no-index", "--no-deps", "--no-compile",
-                        "--target", str(target), *map(str, needed)], check=True)
-    return [wheel.name for wheel in needed]
-
-
-def python_environment(args) -> tuple[str, dict, dict]:
-    """(interpreter, environment for every step, what was installed): step 1."""
-    env = {**os.environ, "JAX_PLATFORMS": "cpu" if args.cpu_rehearsal else "cuda,cpu",
-           "XLA_PYTHON_CLIENT_PREALLOCATE": "false",  # the driver and the workers share the GPU
-           "RAY_USAGE_STATS_ENABLED": "0", "PYTHONUNBUFFERED": "1"}
-    env.pop("RAY_ADDRESS", None)
-    installed: dict = {}
-    if args.python:
-        python = args.python
-        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
-    else:
-        subprocess.run(["make", "-C", str(ROOT), "install"], check=True)
-        python = str(ROOT / ".venv" / "bin" / "python")
-        subprocess.run([python, "-m", "pip", "install", "-q", "-e", f"{ROOT}[gpu]"], check=True)
-        installed["gpu_extra"] = True
-    if args.wheels:
-        target = Path(tempfile.mkdtemp(prefix="pizero-device-site-"))
-        installed["wheels"] = install_wheels(python, Path(args.wheels), target)
-        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(target), env.get("PYTHONPATH")]))
-    versions = subprocess.run(
-        [python, "-c", "import jax, ray, mctx, optax, orbax.checkpoint as o, sys; print(sys.version.split()[0], "
-         "jax.__version__, ray.__version__, mctx.__version__, optax.__version__, o.__version__, "
-         "[str(d) for d in jax.devices()])"], env=env, capture_output=True, text=True, timeout=300)
-    installed["versions"] = (versions.stdout or versions.stderr).strip().splitlines()[-1:]
-    if versions.returncode != 0:
-        raise SystemExit(f"device-check: {python} cannot import the project's dependencies: {versions.stderr[-500:]}")
-    return python, env, installed
 
 
 NOISE_PROBE = """
@@ -141,13 +61,6 @@ def noise_across_backends(python: str, env: dict) -> dict:
     if outcome["exit_code"] == 0:
         outcome.update(json.loads(outcome["output_tail"].strip().splitlines()[-1]))
     return outcome
-
-
-def last_json(text: str):
-    for line in reversed(text.strip().splitlines()):
-        if line.startswith("{"):
-            return json.loads(line)
-    return None
 
 
 def train_for(python: str, env: dict, name: str, extra: tuple, seconds: float, gpus: float, out: Path) -> dict:
@@ -183,17 +96,9 @@ def train_for(python: str, env: dict, name: str, extra: tuple, seconds: float, g
     return result
 
 
-def report_path(args, report: dict) -> Path:
-    kind = re.sub(r"[^a-z0-9]+", "-", report["gpus"][0].split(",")[0].lower()).strip("-")
-    return Path(args.out) / f"{report['date']}-device-check-{kind}.json"
-
-
 def save(args, report: dict) -> Path:
     """Writes the report so far: a step that hangs past the command's own limit still leaves the others'."""
-    path = report_path(args, report)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n")
-    return path
+    return save_report(report_path(args.out, report, "device-check"), report)
 
 
 def check(args) -> dict:
@@ -203,8 +108,7 @@ def check(args) -> dict:
         raise SystemExit(0)
     python, env, installed = python_environment(args)
     out = Path(tempfile.mkdtemp(prefix="pizero-device-check-"))
-    report = {"date": datetime.date.today().isoformat(), "gpus": gpus or ["none (CPU rehearsal)"],
-              "cpu_cores": os.cpu_count(), "python": installed, "commit": _commit()}
+    report = report_header(gpus, installed)
     steps = [
         ("gpu_tests", lambda: run([python, "-m", "pytest", "-q", "-m", "gpu", "-p", "no:cacheprovider",
                                    "tests/trainer/test_gpu.py"], env, args.test_seconds)),
@@ -228,16 +132,6 @@ def _bench(python: str, env: dict, args) -> dict:
     outcome = run(command, env, args.bench_seconds)
     outcome["result"] = last_json(outcome["output_tail"]) if outcome["exit_code"] == 0 else None
     return outcome
-
-
-def _commit() -> str:
-    if os.environ.get("PIZERO_COMMIT"):  # a copy of the tree without .git says which commit it is
-        return os.environ["PIZERO_COMMIT"]
-    try:
-        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    except OSError:  # no git on the machine
-        return "unknown"
-    return head.stdout.strip() or "unknown"
 
 
 def _summary(name: str, result: dict) -> str:

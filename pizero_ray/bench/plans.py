@@ -7,6 +7,8 @@ from dataclasses import dataclass
 from pizero_ray.config import Config, build_config, largest_divisor_at_most
 
 LOW_RANK = 1  # the perturbation rank the benchmark's low-rank mode uses
+# The paper's agent (abstract state 64, hidden 64, k = 4); the search budget and the planner are bench_config's.
+BENCH_AGENT = {"hidden_size": 64, "latent_size": 64, "memory_size": 64, "num_abstract_actions": 4}
 
 
 @dataclass(frozen=True)
@@ -41,8 +43,9 @@ QUICK = BenchPlan(population=64, chunk_size=16, low_rank_chunk_size=32, repeats=
 
 
 def bench_config(population: int, chunk_size: int, simulations: int = 10, perturbation_rank: int = 0,
-                 root_noise: float = 0.0, planner: str = "muzero", devices: int = 1) -> Config:
-    """The paper's agent on TSP10 (one trial per member, as the trainer's default).
+                 root_noise: float = 0.0, planner: str = "muzero", devices: int = 1, **overrides) -> Config:
+    """The paper's agent on TSP10 (one trial per member, as the trainer's default), with any other Config
+    settings in ``overrides`` (e.g. a smaller agent, or how the loops are compiled).
 
     The chunk is the largest divisor of the population not above ``chunk_size``
     that still gives each of ``devices`` devices a chunk.
@@ -50,6 +53,5 @@ def bench_config(population: int, chunk_size: int, simulations: int = 10, pertur
     chunk = largest_divisor_at_most(population, max(1, min(chunk_size, population // devices)))
     return build_config(
         "default", env="tsp", population=population, chunk_size=chunk, perturbation_rank=perturbation_rank,
-        hidden_size=64, latent_size=64, memory_size=64, num_abstract_actions=4, num_simulations=simulations,
-        root_noise=root_noise, planner=planner,
+        num_simulations=simulations, root_noise=root_noise, planner=planner, **{**BENCH_AGENT, **overrides},
     )

@@ -54,9 +54,13 @@ def rollout(config: Config, repeats: int) -> dict:
 
 def pair_scorer_loops(config: Config) -> dict:
     """``loops.summary`` of the chunk program the workers run (``population.make_pair_scorer``), compiled for
-    this process's default device: its while loops, how they nest, which are data-dependent."""
+    this process's first device: its while loops, how they nest, which are data-dependent.
+
+    Lowered as ``local_devices.ChunkScorer`` lowers it (each input placed on the device), so that with a
+    persistent compile cache the scorer's program is loaded, not compiled again."""
     import jax
     import jax.numpy as jnp
+    from jax.sharding import SingleDeviceSharding
 
     import envs
     from pizero_ray.bench import loops
@@ -64,9 +68,10 @@ def pair_scorer_loops(config: Config) -> dict:
 
     env = envs.make(config.env, **config.env_kwargs())
     layout = population.params_layout(config, env)
-    chunk = config.chunk_size
+    chunk, on = config.chunk_size, SingleDeviceSharding(jax.local_devices()[0])
     text = population.make_pair_scorer(config, env, layout).lower(
-        jax.ShapeDtypeStruct((layout.size,), jnp.float32), jax.ShapeDtypeStruct((), jnp.uint32),
-        jax.ShapeDtypeStruct((chunk,), jnp.int32),
-        jax.ShapeDtypeStruct((chunk, layout.perturbation.noise_size), jnp.float32)).compile().as_text()
+        jax.ShapeDtypeStruct((layout.size,), jnp.float32, sharding=on),
+        jax.ShapeDtypeStruct((), jnp.uint32, sharding=on), jax.ShapeDtypeStruct((chunk,), jnp.int32, sharding=on),
+        jax.ShapeDtypeStruct((chunk, layout.perturbation.noise_size), jnp.float32, sharding=on),
+    ).compile().as_text()
     return loops.summary(text)
