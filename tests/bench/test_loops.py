@@ -15,6 +15,8 @@ HLO = """HloModule m
 }
 
 %walk (p: (s32[])) -> (s32[]) {
+  %m = f32[] multiply(f32[] %x, f32[] %x)
+  %f = f32[] fusion(f32[] %x), kind=kLoop, calls=%cnd
   ROOT %t = (s32[]) tuple(s32[] %x)
 }
 
@@ -22,6 +24,7 @@ HLO = """HloModule m
   %w1 = (s32[]) while((s32[]) %p), condition=%cnd, body=%walk
   %w2 = (s32[]) while((s32[]) %p), condition=%cnd, body=%walk
   %rng = (s32[]) while((s32[]) %p), condition=%cnd, body=%walk, backend_config={"known_trip_count":{"n":"5"}}
+  %s = f32[] add(f32[] %x, f32[] %x)
   ROOT %t = (s32[]) tuple(s32[] %x)
 }
 
@@ -47,7 +50,10 @@ def test_the_nest_is_read_through_calls_and_branches():
     assert simulations.trip_count == 10
     assert [loop.trip_count for loop in simulations.inner] == [None, None, 5]
     assert loops.summary(HLO) == {"while_loops": 5, "data_dependent_while_loops": 3, "deepest_loop_nest": 3,
-                                  "data_dependent_loop_shape": "?[10[? ?]]"}
+                                  "data_dependent_loop_shape": "?[10[? ?]]",
+                                  # a trip's instructions: a fusion is one, a conditional's branches count,
+                                  # the nested loops do not
+                                  "ops_per_trip_shape": "?:2[10:1[?:2 ?:2]]", "program_ops": 1}
 
 
 def test_the_rollout_has_an_episode_loop_around_the_simulations_each_a_walk_and_a_backup():
