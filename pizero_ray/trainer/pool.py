@@ -66,6 +66,13 @@ def serialized_bytes(obj) -> int:
     return len(header) + sum(buffer.raw().nbytes for buffer in buffers)
 
 
+def last_line(error: BaseException) -> str:
+    """The last non-blank line of an error's text: Ray's errors from an actor carry its whole traceback, whose
+    last line is the exception itself."""
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    return lines[-1] if lines else type(error).__name__
+
+
 def call_bytes(*args) -> int:
     """A remote call's arguments: each value serialised, each object reference as its id.
 
@@ -171,7 +178,7 @@ class WorkerPool:
             self._drop(worker, kill=True)  # dead already, unless only its call was lost: never leak it
             self._startup_failures += 1
             if self._startup_failures >= MAX_STARTUP_FAILURES:
-                raise TrainingError(f"workers keep dying while starting: {error}") from None
+                raise TrainingError(f"workers keep dying while starting: {last_line(error)}") from None
             return
         worker.ready = True
         self._startup_failures = 0

@@ -423,3 +423,26 @@ def test_a_straggler_hung_past_the_chunk_timeout_is_killed_and_replaced(ray_sess
         _wait_until_dead(ray_session, hung.actor)
     finally:
         pool.shutdown()
+
+
+def test_workers_that_die_starting_stop_the_run_with_the_error_in_one_line(tmp_path, ray_session, monkeypatch):
+    from pizero_ray.trainer import workers
+
+    class BrokenWorker:  # pickled by value: its __init__ fails as a worker with a bad environment would
+        def __init__(self):
+            raise ValueError("the environment's step returned a reward of shape (3,)")
+
+        def ready(self):
+            return {}
+
+    def start_worker(*args, **kwargs):
+        import ray
+        return ray.remote(BrokenWorker).options(num_cpus=0).remote()
+
+    monkeypatch.setattr(workers, "start_worker", start_worker)
+    with pytest.raises(driver.TrainingError) as raised:
+        _train(tmp_path, "none", workers=1)
+    message = str(raised.value)
+    assert "\n" not in message
+    assert message == ("workers keep dying while starting: "
+                       "ValueError: the environment's step returned a reward of shape (3,)")
