@@ -79,8 +79,9 @@ def presets_table() -> list[str]:
     """What each preset changes, in the order ``build_config`` applies them."""
     rows = ["| applies to | preset | changes |", "|---|---|---|"]
     rows += [f"| every environment | `{name}` | {_overrides(values)} |" for name, values in presets.PRESETS.items()]
-    for env, by_preset in presets.ENV_PRESETS.items():
-        rows += [f"| `--env {env}` | `{name}` | {_overrides(values)} |" for name, values in by_preset.items() if values]
+    for env in presets.ENV_PRESETS:  # as build_config reads them (the gpu preset takes the env's default)
+        rows += [f"| `--env {env}` | `{name}` | {_overrides(values)} |" for name in presets.PRESETS
+                 if (values := presets.env_preset(env, name))]
     rows += [f"| `--method {method}` | any | {_overrides(values)} |"
              for method, values in presets.METHOD_PRESETS.items()]
     rows += [f"| `--method {method} --env {env}` | any | {_overrides(values)} |"
