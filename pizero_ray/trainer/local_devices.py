@@ -162,15 +162,17 @@ class NoiseCache:
 
 
 class ChunkScorer:
-    """The population rollout compiled for each local device: ``score`` one chunk, or ``score_all``.
+    """The population rollout compiled for each local device: ``score`` one chunk, ``score_many``, or ``score_all``.
 
-    ``score`` may be called from several threads at once (a threaded Ray
-    actor): each call borrows a free device for the chunk's duration, and
-    keeps the chunk's noise for ``gradient_part`` (unless ``keep_noise`` is
-    False: where the driver forms every part, nobody asks). The noise is made on the
-    device by ``es.GradientParts.noise``, the function that regenerates it
-    anywhere else, compiled for each device as the rollout is; the rollout
-    takes it as an input.
+    The unit of a device call is a launch: ``config.chunks_per_launch``
+    chunks, grouped by index, whichever of them are asked for (the others'
+    scores wait for their call). ``score`` may be called from several threads
+    at once (a threaded Ray actor): each call borrows a free device for the
+    launch's duration, and keeps each chunk's noise for ``gradient_part``
+    (unless ``keep_noise`` is False: where the driver forms every part, nobody
+    asks). The noise is made on the device by ``es.GradientParts.noise``, the
+    function that regenerates it anywhere else, compiled for each device as
+    the rollout is; the rollout takes it as an input.
     """
 
     def __init__(self, config: Config, max_devices: int | None = None, keep_noise: bool = True):
