@@ -5,11 +5,11 @@ Default run, each step with its own deadline (a share of what is left of ``--bud
 after every step into OUT/<date>-device-run-<gpu kind>.json, so a run cut off keeps what it measured:
 
 a. gpu_tests: ``pytest -m gpu tests/trainer/test_gpu.py`` (skipped in a CPU rehearsal).
-b. sweep: the population rollout in this machine's one device (``pizero_ray.bench.population_sweep``, in a
+b. population_sweep: the population rollout in this machine's one device (``pizero_ray.bench.population_sweep``, in a
    subprocess): the main curve, low-rank noise + MuZero planner + 10 simulations at 64 to 32768 pairs, then
    cross sections at 8192 pairs: full-rank noise, no planner and, where the Config has the settings,
    episode_loop=horizon, simulation_loop=unrolled and both.
-c. sweep_command_buffers: the cross-section points again (and their base point) in a subprocess with XLA's
+c. population_sweep_command_buffers: the cross-section points again (and their base point) in a subprocess with XLA's
    command buffers for while loops and conditionals (COMMAND_BUFFER_FLAGS), which should spare the host
    round trip per trip of a while loop. An XLA that rejects the flags leaves the error in the rows.
 d. trainer: ``pizero train`` with Ray, one worker on the whole GPU, then two sharing it, at the sweep's
@@ -57,7 +57,7 @@ COMMAND_BUFFER_FLAGS = ("--xla_gpu_enable_command_buffer=FUSION,CUBLAS,CUBLASLT,
                         "--xla_gpu_graph_min_graph_size=1")
 # Each step's share of the time left when it starts; a step that ends early leaves its time to the next ones.
 # The GPU tests are a gate (a cut-off run fails them), the sweep the main measurement: the larger shares.
-STEP_SHARES = {"gpu_tests": 0.25, "sweep": 0.35, "sweep_command_buffers": 0.12, "trainer": 0.28}
+STEP_SHARES = {"gpu_tests": 0.25, "population_sweep": 0.35, "population_sweep_command_buffers": 0.12, "trainer": 0.28}
 LOOP_SETTINGS = {"episode_loop": "horizon", "simulation_loop": "unrolled"}  # each, then both
 TINY_AGENT = {"hidden_size": 8, "latent_size": 8, "memory_size": 8, "num_abstract_actions": 2}
 TARGET_AGENT_STEPS_PER_S = 1e6
@@ -272,7 +272,7 @@ def main_rollout_row(rows: list[dict], plan: Plan) -> dict | None:
 def targets(report: dict) -> dict:
     """Issue 46's targets, each met or not (None: not measured)."""
     plan = report["plan"]
-    main = [row for row in report.get("sweep", {}).get("rows", []) if "agent_steps_per_s" in row and (
+    main = [row for row in report.get("population_sweep", {}).get("rows", []) if "agent_steps_per_s" in row and (
         row["mode"], row["planner"], row["simulations"], row["overrides"]) == ("low_rank", "muzero",
                                                                             plan["simulations"], plan["agent"])]
     trainer = report.get("trainer", {})
@@ -296,12 +296,12 @@ def default_run(args, python: str, env: dict, report: dict, path: Path) -> dict:
         "gpu_tests": lambda deadline: {"skipped": "CPU rehearsal"} if args.cpu_rehearsal or args.smoke else run(
             [python, "-m", "pytest", "-q", "-m", "gpu", "-p", "no:cacheprovider", "tests/trainer/test_gpu.py"],
             env, deadline),
-        "sweep": lambda deadline: sweep_step(python, env, main + [p for p in cross if p not in main], plan.repeats,
-                                             deadline, work / "sweep"),
-        "sweep_command_buffers": lambda deadline: sweep_step(python, env, cross, plan.repeats, deadline,
-                                                             work / "sweep-command-buffers", COMMAND_BUFFER_FLAGS),
-        "trainer": lambda deadline: trainer_step(python, env, plan, main_rollout_row(report["sweep"]["rows"], plan),
-                                                 deadline, work),
+        "population_sweep": lambda deadline: sweep_step(
+            python, env, main + [p for p in cross if p not in main], plan.repeats, deadline, work / "sweep"),
+        "population_sweep_command_buffers": lambda deadline: sweep_step(
+            python, env, cross, plan.repeats, deadline, work / "sweep-command-buffers", COMMAND_BUFFER_FLAGS),
+        "trainer": lambda deadline: trainer_step(
+            python, env, plan, main_rollout_row(report["population_sweep"]["rows"], plan), deadline, work),
     }
     for name, step in steps.items():
         left = args.budget_s - (time.time() - started)
@@ -320,7 +320,7 @@ def summary(name: str, result: dict) -> str:
         return f"skipped ({result['skipped']})"
     if name == "gpu_tests":
         return f"exit {result['exit_code']} in {result['seconds']} s: {_last_line(result['output_tail'])}"
-    if name.startswith("sweep"):
+    if name.startswith("population_sweep"):
         done = [row for row in result["rows"] if "agent_steps_per_s" in row]
         best = max(done, key=lambda row: row["agent_steps_per_s"], default=None)
         top = (f"; best {best['agent_steps_per_s']:,.0f} agent-steps/s ({best['population']} pairs, {best['mode']}, "

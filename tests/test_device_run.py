@@ -82,12 +82,12 @@ def test_the_smoke_run_measures_every_step(device_run, tmp_path):
     (path,) = tmp_path.glob("*-device-run-*.json")
     report = json.loads(path.read_text())
     assert report["gpu_tests"] == {"skipped": "CPU rehearsal"}
-    sweep, buffers = report["sweep"]["rows"], report["sweep_command_buffers"]["rows"]
+    sweep, buffers = report["population_sweep"]["rows"], report["population_sweep_command_buffers"]["rows"]
     main, _ = device_run.sweep_points(device_run.plan_for(device_run.parse_args(["--smoke"])))
     assert [(r["population"], r["planner"], r["overrides"]) for r in sweep] == [
         (p["population"], p["planner"], p["overrides"]) for p in main]
     assert [r["population"] for r in buffers] == [8]
-    assert "--xla_gpu_enable_command_buffer" in report["sweep_command_buffers"]["xla_flags"]
+    assert "--xla_gpu_enable_command_buffer" in report["population_sweep_command_buffers"]["xla_flags"]
     for row in sweep + buffers:
         assert "error" not in row and set(ROW_FIELDS) <= set(row), row
         assert row["agent_steps_per_s"] * row["iteration_s"] == pytest.approx(8 * 2 * 10)

@@ -38,7 +38,10 @@ def figures(run: CompiledRollout, iteration_s: float) -> dict:
     """What the bench reports of one timed rollout."""
     return {
         "population": run.config.population,
+        "planner": run.config.planner,
         "simulations": run.config.num_simulations,
+        "chunk_size": run.config.chunk_size,
+        "chunks_per_launch": run.config.chunks_per_launch,
         "devices": run.devices,
         "iteration_s": iteration_s,
         "agent_steps_per_s": run.agent_steps / iteration_s,
