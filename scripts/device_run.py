@@ -13,7 +13,7 @@ c. population_sweep_command_buffers: the cross-section points again (and their b
    command buffers for while loops and conditionals (COMMAND_BUFFER_FLAGS), which should spare the host
    round trip per trip of a while loop. An XLA that rejects the flags leaves the error in the rows.
 d. trainer: ``pizero train`` with Ray, one worker on the whole GPU, then two sharing it, at the sweep's
-   agent and a large population; the later half's median iteration and driver update (metrics.jsonl), both
+   agent at the gpu preset's population, chunks and launches; the later half's median iteration and driver update (metrics.jsonl), both
    parameter hashes, and the iteration over the in-process rollout of the same population (step b).
 
 ``--learn ENV[,ENV]`` is a second invocation instead: ``--seeds`` trainings of each environment at once
@@ -52,6 +52,9 @@ from pizero_ray.presets import PRESETS  # noqa: E402
 from pizero_ray.settings import lookup  # noqa: E402
 
 MAIN_POPULATIONS = (64, 256, 1024, 4096, 8192, 16384, 32768)
+# The trainer check runs the gpu preset's population and chunks (launches of half the chunks: the preset's 32 of
+# 64 at its population), so that its figures are the preset's.
+GPU_PRESET = PRESETS["gpu"]
 CROSS_POPULATION = 8192
 COMMAND_BUFFER_FLAGS = ("--xla_gpu_enable_command_buffer=FUSION,CUBLAS,CUBLASLT,CUSTOM_CALL,CUDNN,WHILE,CONDITIONAL "
                         "--xla_gpu_graph_min_graph_size=1")
@@ -93,7 +96,8 @@ def plan_for(args) -> Plan:
     elif args.cpu_rehearsal:
         plan = Plan((16, 64), 64, 16, 10, 3, 64, 16, 3, 0.0)
     else:
-        plan = Plan(MAIN_POPULATIONS, CROSS_POPULATION, 256, 10, 3, 8192, 256, 8, 1.0)
+        plan = Plan(MAIN_POPULATIONS, CROSS_POPULATION, 256, 10, 3, GPU_PRESET["population"], GPU_PRESET["chunk_size"],
+                    8, 1.0)
     given = {"chunk_size": args.chunk_size, "repeats": args.repeats, "trainer_population": args.trainer_population,
              "trainer_chunk_size": args.trainer_chunk_size, "trainer_iterations": args.trainer_iterations,
              "trainer_chunks_per_launch": args.trainer_chunks_per_launch}
@@ -438,7 +442,7 @@ def parse_args(argv: list[str] | None):
     sizes = parser.add_argument_group("sizes of the default run (defaults: the GPU's, or the rehearsal's)")
     sizes.add_argument("--chunk-size", type=_positive_int, help="the sweep's chunk (GPU default 256)")
     sizes.add_argument("--repeats", type=_positive_int, help="timed calls per sweep point, after a warm-up (3)")
-    sizes.add_argument("--trainer-population", type=_positive_int, help="pairs (GPU default 8192)")
+    sizes.add_argument("--trainer-population", type=_positive_int, help="pairs (GPU default: the gpu preset's)")
     sizes.add_argument("--trainer-chunk-size", type=_positive_int, help="GPU default 256")
     sizes.add_argument("--trainer-iterations", type=_positive_int, help="GPU default 8")
     sizes.add_argument("--trainer-chunks-per-launch", type=_positive_int,

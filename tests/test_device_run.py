@@ -10,6 +10,7 @@ import pytest
 from pizero_ray.bench.population_sweep import ROW_FIELDS, as_point
 from pizero_ray.cli import training
 from pizero_ray.cli.commands import build_parser
+from pizero_ray.presets import PRESETS
 from tests.scripts_loading import SCRIPTS
 
 
@@ -51,12 +52,13 @@ def test_the_training_is_the_sweeps_trainer_point(device_run):
     command = device_run.train_command("python", plan, device_run.Path("/tmp/run"), 2, 0.5, device_run.Path("/c"))
     flags = command[command.index("train") + 1:command.index("--no-progress")]
     given = dict(zip(flags[::2], flags[1::2]))
-    assert (given["--population"], given["--chunk-size"], given["--chunks-per-call"]) == ("8192", "256", "16")
+    assert (given["--population"], given["--chunk-size"], given["--chunks-per-call"]) == ("16384", "256", "32")
     assert (given["--hidden"], given["--simulations"], given["--perturbation-rank"], given["--planner"]) == (
         "64", "10", "1", "muzero")
     assert (given["--workers"], given["--gpus-per-worker"]) == ("2", "0.5")
     launch = device_run.trainer_point(plan)["overrides"].get("chunks_per_launch")
-    assert given.get("--chunks-per-launch") == (None if launch is None else "16")  # two workers: a launch each
+    assert given.get("--chunks-per-launch") == (None if launch is None else "32")  # two workers: a launch each
+    assert launch == PRESETS["gpu"]["chunks_per_launch"]  # the gpu preset's launches
     # `pizero train` parses these options into the config step b times at this point
     args = build_parser().parse_args(command[command.index("train"):])
     assert training.train_config(args) == as_point(device_run.trainer_point(plan)).config()
