@@ -13,8 +13,9 @@ c. population_sweep_command_buffers: the cross-section points again (and their b
    command buffers for while loops and conditionals (COMMAND_BUFFER_FLAGS), which should spare the host
    round trip per trip of a while loop. An XLA that rejects the flags leaves the error in the rows.
 d. trainer: ``pizero train`` with Ray, one worker on the whole GPU, then two sharing it, at the sweep's
-   agent at the gpu preset's population, chunks and launches; the later half's median iteration and driver update (metrics.jsonl), both
-   parameter hashes, and the iteration over the in-process rollout of the same population (step b).
+   agent at the gpu preset's population, chunks and launches; the later half's median iteration and driver
+   update (metrics.jsonl), both parameter hashes, and the iteration over the in-process rollout of the same
+   population (step b).
 
 ``--learn ENV[,ENV]`` is a second invocation instead: ``--seeds`` trainings of each environment at once
 (separate processes sharing the GPU), the ``default`` preset at ``--population``, each stopped by SIGTERM
