@@ -105,7 +105,7 @@ class Config:
     chunk_size: int = setting(32, flag="--chunk-size",
                               help="pairs per unit of work (divides the population); fixed so results never "
                                    "depend on the workers")
-    # A launch's members are what fills a GPU: a step costs about as much for thousands as for 64. Fixed by the
+    # A launch's members are what should fill a GPU (a step there is bound by launches, not arithmetic). Fixed by the
     # config, not by how chunks are handed out, because a bigger launch may round differently (XLA picks its
     # kernels by shape: on 2 CPU cores, 8 chunks of 32 pairs of the bench agent launched together scored other
     # bits than each alone), and the parameters must not depend on the workers.
