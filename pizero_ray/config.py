@@ -105,10 +105,10 @@ class Config:
     chunk_size: int = setting(32, flag="--chunk-size",
                               help="pairs per unit of work (divides the population); fixed so results never "
                                    "depend on the workers")
-    # A launch's members are what should fill a GPU (a step there is bound by launches, not arithmetic). Fixed by the
-    # config, not by how chunks are handed out, because a bigger launch may round differently (XLA picks its
-    # kernels by shape: on 2 CPU cores, 8 chunks of 32 pairs of the bench agent launched together scored other
-    # bits than each alone), and the parameters must not depend on the workers.
+    # A launch's members are what should fill a GPU (a step there is bound by launches, not arithmetic).
+    # Fixed by the config, not by how chunks are handed out, because a bigger launch may round differently
+    # (XLA picks its kernels by shape: on 2 CPU cores, 8 chunks of 32 pairs of the bench agent launched
+    # together scored other bits than each alone), and the parameters must not depend on the workers.
     chunks_per_launch: int = setting(
         1, flag="--chunks-per-launch",
         help="chunks a worker plays in one device call, grouped by index (chunks 0..L-1, L..2L-1, ...): a GPU "

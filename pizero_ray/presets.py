@@ -16,9 +16,10 @@ from typing import Any
 
 # "gpu" sizes a worker's device call. On an H200 one batched agent step (10 simulations) took about 15 ms at
 # population 64 (docs/performance.md, "On a GPU"): launches and loop conditions, not arithmetic, so a step
-# should cost about the same for many more members (not yet measured). 1M agent-steps/s at 15 ms a step needs 15,000 members a step: a
-# launch of 32 chunks of 256 pairs is 16,384 members. Chunks stay 256 pairs (the gradient's unit and order of
-# summation); two launches an iteration, so that two workers sharing a GPU each have one. Run it as
+# should cost about the same for many more members (not yet measured). 1M agent-steps/s at 15 ms a step
+# needs 15,000 members a step: a launch of 32 chunks of 256 pairs is 16,384 members. Chunks stay 256 pairs
+# (the gradient's unit and order of summation); two launches an iteration, so that two workers sharing a GPU
+# each have one. Run it as
 #   pizero train --preset gpu --workers 1 --gpus-per-worker 1
 # Sized from that one measurement, not yet measured itself (issue 46's device run will).
 _GPU_SIZED: dict[str, Any] = {"population": 16384, "chunk_size": 256, "chunks_per_launch": 32}
