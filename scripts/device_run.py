@@ -7,8 +7,7 @@ after every step into OUT/<date>-device-run-<gpu kind>.json, so a run cut off ke
 a. gpu_tests: ``pytest -m gpu tests/trainer/test_gpu.py`` (skipped in a CPU rehearsal).
 b. population_sweep: the population rollout in this machine's one device (``pizero_ray.bench.population_sweep``, in a
    subprocess): the main curve, low-rank noise + MuZero planner + 10 simulations at 64 to 32768 pairs, then
-   cross sections at 8192 pairs: full-rank noise, no planner and, where the Config has the settings,
-   episode_loop=horizon, simulation_loop=unrolled and both.
+   cross sections at 8192 pairs: full-rank noise, no planner, episode_loop=horizon, simulation_loop=unrolled and both.
 c. population_sweep_command_buffers: the cross-section points again (and their base point) in a subprocess with XLA's
    command buffers for while loops and conditionals (COMMAND_BUFFER_FLAGS), which should spare the host
    round trip per trip of a while loop. An XLA that rejects the flags leaves the error in the rows.
@@ -86,8 +85,8 @@ class Plan:
     trainer_iterations: int
     gpus_per_worker: float  # the single worker's; two workers take half each
     agent: dict = field(default_factory=dict)  # Config overrides of every point and training (smoke: a tiny agent)
-    cross_sections: tuple[str, ...] = CROSS_SECTIONS  # the loops' only where the Config has their settings
-    trainer_chunks_per_launch: int | None = None  # None: half the chunks (where the Config has the setting)
+    cross_sections: tuple[str, ...] = CROSS_SECTIONS
+    trainer_chunks_per_launch: int | None = None  # None: half the chunks
 
 
 def plan_for(args) -> Plan:
@@ -105,11 +104,6 @@ def plan_for(args) -> Plan:
     return dataclasses.replace(plan, **{name: value for name, value in given.items() if value is not None})
 
 
-def has_setting(name: str) -> bool:
-    """Whether the Config declares ``name`` (settings other changes add; the run works without them)."""
-    return name in {f.name for f in dataclasses.fields(Config)}
-
-
 def sweep_point(plan: Plan, population: int, **changes) -> dict:
     """A point of population_sweep: the plan's main agent (low-rank noise, MuZero planner) with ``changes``."""
     overrides = {**plan.agent, **changes.pop("overrides", {})}
@@ -120,15 +114,14 @@ def sweep_point(plan: Plan, population: int, **changes) -> dict:
 def trainer_point(plan: Plan) -> dict:
     """The trainings' config as a sweep point (step b times it: the rollout the trainer is held to).
 
-    Where the Config has ``chunks_per_launch``, a launch is half the chunks unless told: one worker plays its
+    A launch is half the chunks unless told: one worker plays its
     call of all chunks as two launches, two workers one launch each, and both runs have the same config (the
     launch is part of what is computed), so their hashes can be compared.
     """
-    overrides = {}
-    if has_setting("chunks_per_launch"):
-        chunks = plan.trainer_population // bench_chunk(plan.trainer_population, plan.trainer_chunk_size)
-        overrides["chunks_per_launch"] = plan.trainer_chunks_per_launch or largest_divisor_at_most(chunks, chunks // 2)
-    return sweep_point(plan, plan.trainer_population, chunk_size=plan.trainer_chunk_size, overrides=overrides)
+    chunks = plan.trainer_population // bench_chunk(plan.trainer_population, plan.trainer_chunk_size)
+    launch = plan.trainer_chunks_per_launch or largest_divisor_at_most(chunks, chunks // 2)
+    return sweep_point(plan, plan.trainer_population, chunk_size=plan.trainer_chunk_size,
+                       overrides={"chunks_per_launch": launch})
 
 
 def sweep_points(plan: Plan) -> tuple[list[dict], list[dict]]:
@@ -137,11 +130,10 @@ def sweep_points(plan: Plan) -> tuple[list[dict], list[dict]]:
     def point(population: int, **changes) -> dict:
         return sweep_point(plan, population, **changes)
 
-    changes = {"exact": {"mode": "exact"}, "no_planner": {"planner": "none"}}
-    if all(has_setting(name) for name in LOOP_SETTINGS):  # the loops' settings, where this Config has them
-        changes.update(episode_loop={"overrides": {"episode_loop": LOOP_SETTINGS["episode_loop"]}},
-                       simulation_loop={"overrides": {"simulation_loop": LOOP_SETTINGS["simulation_loop"]}},
-                       both_loops={"overrides": dict(LOOP_SETTINGS)})
+    changes = {"exact": {"mode": "exact"}, "no_planner": {"planner": "none"},
+               "episode_loop": {"overrides": {"episode_loop": LOOP_SETTINGS["episode_loop"]}},
+               "simulation_loop": {"overrides": {"simulation_loop": LOOP_SETTINGS["simulation_loop"]}},
+               "both_loops": {"overrides": dict(LOOP_SETTINGS)}}
     main = [point(population) for population in plan.populations]
     main.append(point(max(plan.populations), planner="none"))  # the planner-free agent's target: 10M agent-steps/s
     main += [trainer_point(plan)] if trainer_point(plan) not in main else []
@@ -344,13 +336,13 @@ def _say(line: str) -> None:
 
 
 def learn_command(python: str, args, env_name: str, seed: int, run_dir: Path, cache: Path) -> list[str]:
-    """`pizero train` of one seed: ``--preset`` at ``--population``, every chunk in one call (and one launch,
-    where the Config has the setting), its worker on its share of the GPU (each seed's own local Ray instance
-    sees the whole GPU; the share says the intent and turns off JAX's preallocation in the worker)."""
+    """`pizero train` of one seed: ``--preset`` at ``--population``, every chunk in one call and one launch, its worker
+    on its share of the GPU (each seed's own local Ray instance sees the whole GPU; the share says the intent
+    and turns off JAX's preallocation in the worker)."""
     chunk = bench_chunk(args.population, args.learn_chunk_size)
     chunks = args.population // chunk
     gpus = 0.0 if args.cpu_rehearsal or args.smoke else int(10_000 / args.seeds) / 10_000  # Ray: 4 decimals
-    launch = ["--chunks-per-launch", str(chunks)] if has_setting("chunks_per_launch") else []
+    launch = ["--chunks-per-launch", str(chunks)]
     return [python, "-m", "pizero_ray.cli", "train", "--env", env_name, "--preset", args.preset,
             "--run-dir", str(run_dir), "--population", str(args.population), "--chunk-size", str(chunk), *launch,
             "--seed", str(seed), "--iterations", "1000000", "--workers", "1", "--gpus-per-worker", f"{gpus:g}",
@@ -447,7 +439,7 @@ def parse_args(argv: list[str] | None):
     sizes.add_argument("--trainer-chunk-size", type=_positive_int, help="GPU default 256")
     sizes.add_argument("--trainer-iterations", type=_positive_int, help="GPU default 8")
     sizes.add_argument("--trainer-chunks-per-launch", type=_positive_int,
-                       help="where the Config has the setting (default: half the chunks)")
+                       help="chunks per launch (default: half the chunks)")
     learning = parser.add_argument_group("--learn: trainings instead of the default run")
     learning.add_argument("--learn", type=env_names, metavar="ENV[,ENV]", help="train these environments")
     learning.add_argument("--preset", default="default", help="the trainings' preset (default: default)")

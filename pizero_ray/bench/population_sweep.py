@@ -3,10 +3,10 @@
 Each point is timed alone, one after another (not interleaved as ``timing.time_interleaved`` does): the points
 differ in size by orders of magnitude, and a small one timed between large ones would measure their wake. A
 point builds one ``local_devices.ChunkScorer`` on one device and hands it the whole population's consecutive
-chunks in one ``score_many`` call, as a GPU worker given ``--chunks-per-call`` = all its chunks is, and (where
-the Config has ``chunks_per_launch``, unless the point's overrides set it) as one launch: one device call of
-every pair. A warm-up call first, then the median of ``repeats`` calls. A point that fails (out of device
-memory, a bad setting) records its error in one line and the sweep goes on.
+chunks in one ``score_many`` call, as a GPU worker given ``--chunks-per-call`` = all its chunks is, and (unless
+the point's overrides set ``chunks_per_launch``) as one launch: one device call of every pair. A warm-up call
+first, then the median of ``repeats`` calls. A point that fails (out of device memory, a bad setting) records
+its error in one line and the sweep goes on.
 
 ``device_memory_bytes`` is the device's ``peak_bytes_in_use`` after the point (GPUs; the CPU reports none). The
 peak is the process's since it started, not the point's: read in a sweep of growing populations, each point's
@@ -51,24 +51,19 @@ class SweepPoint:
     overrides: dict = field(default_factory=dict)  # other Config settings, e.g. {"episode_loop": "horizon"}
 
     def config(self) -> Config:
-        """The bench's agent at this point. Where the Config has ``chunks_per_launch`` and the overrides do not
-        set it, the whole population is one launch: one device call, as a GPU worker given all its chunks."""
+        """The bench's agent at this point. Unless the overrides set ``chunks_per_launch``, the whole population
+        is one launch: one device call, as a GPU worker given all its chunks."""
         if self.mode not in MODES:
             raise ValueError(f"unknown mode {self.mode!r} (choose from {', '.join(MODES)})")
         config = bench_config(self.population, self.chunk_size, self.simulations, perturbation_rank=MODES[self.mode],
                               planner=self.planner, **self.overrides)
-        if has_setting("chunks_per_launch") and "chunks_per_launch" not in self.overrides:
+        if "chunks_per_launch" not in self.overrides:
             config = dataclasses.replace(config, chunks_per_launch=config.population // config.chunk_size)
         return config
 
     def label(self) -> str:
         extra = "".join(f", {key}={value}" for key, value in self.overrides.items())
         return f"{self.population} pairs, {self.mode}, {self.planner}, {self.simulations} sims{extra}"
-
-
-def has_setting(name: str) -> bool:
-    """Whether the Config declares ``name`` (settings that other changes add: the sweep works without them)."""
-    return name in {f.name for f in dataclasses.fields(Config)}
 
 
 def as_point(point: SweepPoint | dict) -> SweepPoint:
@@ -88,7 +83,7 @@ def sweep_row(point: SweepPoint, repeats: int, loops_by_program: dict[str, dict]
     try:
         config = point.config()
         row.update(time_population(config, repeats), chunk_size=config.chunk_size,
-                   chunks_per_launch=getattr(config, "chunks_per_launch", None))
+                   chunks_per_launch=config.chunks_per_launch)
         row["program_loops"] = program_loops(config, loops_by_program)
     except Exception as error:  # noqa: BLE001 - out of memory, a bad setting: recorded, the sweep goes on
         row["error"] = one_line(error)
@@ -119,14 +114,13 @@ def time_population(config: Config, repeats: int) -> dict:
         return time.perf_counter() - started
 
     warmup_s = one_iteration(0)  # a program compiled at the first call (if score_many makes one) is timed here
-    calls_before = getattr(scorer, "launches_run", None)  # the scorer's count of device calls, where it keeps one
+    calls_before = scorer.launches_run
     times = [one_iteration(seed) for seed in range(1, repeats + 1)]
     iteration_s = statistics.median(times)
     return {"agent_steps_per_s": scorer.agent_steps_per_pair * config.population / iteration_s,
             "iteration_s": iteration_s, "iteration_s_each": times, "compile_s": compile_s, "warmup_s": warmup_s,
             "repeats": repeats, "chunks": len(first_pairs), "parameters": scorer.parameters,
-            "device_calls_per_iteration": None if calls_before is None else (scorer.launches_run - calls_before)
-            / repeats}
+            "device_calls_per_iteration": (scorer.launches_run - calls_before) / repeats}
 
 
 def program_loops(config: Config, known: dict[str, dict]) -> dict:
@@ -135,11 +129,8 @@ def program_loops(config: Config, known: dict[str, dict]) -> dict:
     program is loaded rather than compiled again. Computed once per program (``known``)."""
     from pizero_ray.bench.rollout import pair_scorer_loops
 
-    launch_pairs = config.chunk_size * getattr(config, "chunks_per_launch", 1)
-    launch = {"population": launch_pairs, "chunk_size": launch_pairs}
-    if has_setting("chunks_per_launch"):
-        launch["chunks_per_launch"] = 1
-    program = dataclasses.replace(config, **launch)
+    launch_pairs = config.chunk_size * config.chunks_per_launch
+    program = dataclasses.replace(config, population=launch_pairs, chunk_size=launch_pairs, chunks_per_launch=1)
     key = program.to_json()
     if key not in known:
         try:

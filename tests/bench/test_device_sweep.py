@@ -34,8 +34,8 @@ def test_each_point_is_timed_as_a_whole_population_on_one_device(rows):
         # every member plays one TSP10 episode to its horizon
         assert row["agent_steps_per_s"] * row["iteration_s"] == pytest.approx(population * 2 * TSP_HORIZON)
         assert row["overrides"] == TINY
-        if sweep.has_setting("chunks_per_launch"):  # the whole population in one device call
-            assert (row["chunks_per_launch"], row["device_calls_per_iteration"]) == (population // chunk, 1)
+        # the whole population in one device call
+        assert (row["chunks_per_launch"], row["device_calls_per_iteration"]) == (population // chunk, 1)
     assert (low_rank["mode"], low_rank["planner"], exact["mode"], exact["planner"]) == (
         "low_rank", "muzero", "exact", "none")
 
