@@ -9,7 +9,7 @@ single-device program on a whole chunk, so a chunk's scores do not depend on
 which device, or how many, computed it: the trainer stays deterministic
 whatever its workers' sizes. On a GPU node the devices are the GPUs the
 process may see. The scorer keeps each chunk's noise for the chunk's share
-of the gradient (``NoiseCache``), and ``CoreClaim`` keeps worker processes off
+of the gradient (``ChunkCache``), and ``CoreClaim`` keeps worker processes off
 each other's cores.
 """
 
@@ -122,11 +122,12 @@ class CoreClaim:
         return cls(cores, [fd for _, fd in held], tuple(allowed))
 
 
-class NoiseCache:
-    """Chunks' noise by (iteration seed, first pair), for the newest ``KEPT_SEEDS`` seeds, up to a byte cap.
+class ChunkCache:
+    """What a worker keeps of each chunk by (iteration seed, first pair): its noise, or the scores of a chunk
+    launched before it was asked for; for the newest ``KEPT_SEEDS`` seeds, up to a byte cap.
 
-    A seed's noise is dropped once ``KEPT_SEEDS`` newer seeds have been seen, so
-    the noise of chunks whose parts are never asked for (stragglers, chunks
+    A seed's chunks are dropped once ``KEPT_SEEDS`` newer seeds have been seen,
+    so the noise of chunks whose parts are never asked for (stragglers, chunks
     whose parts the driver computed itself) does not pile up; a straggler of a
     seed already dropped (one of the last ``SEEDS_REMEMBERED`` seen) is not kept.
     """
@@ -136,29 +137,29 @@ class NoiseCache:
         self._max_bytes = NOISE_CACHE_BYTES if max_bytes is None else max_bytes
         self._lock = threading.Lock()
         self._seeds: list[int] = []  # seeds seen, oldest first; the last KEPT_SEEDS are kept
-        self._noise: dict[tuple[int, int], object] = {}
-        self.misses = 0  # chunks asked for whose noise was not here
+        self._kept: dict[tuple[int, int], object] = {}
+        self.misses = 0  # chunks asked for that were not here
 
-    def keep(self, seed: int, first_pair: int, noise) -> None:
+    def keep(self, seed: int, first_pair: int, value) -> None:
         with self._lock:
             if seed not in self._seeds:  # a new iteration: the oldest kept one is over
                 self._seeds = (self._seeds + [seed])[-SEEDS_REMEMBERED:]
                 kept = set(self._seeds[-KEPT_SEEDS:])
-                self._noise = {key: value for key, value in self._noise.items() if key[0] in kept}
+                self._kept = {key: value for key, value in self._kept.items() if key[0] in kept}
             if seed not in self._seeds[-KEPT_SEEDS:]:  # a straggler of an iteration that is over
                 return
-            if (len(self._noise) + 1) * self._chunk_bytes <= self._max_bytes:
-                self._noise[(seed, first_pair)] = noise
+            if (len(self._kept) + 1) * self._chunk_bytes <= self._max_bytes:
+                self._kept[(seed, first_pair)] = value
 
     def take(self, seed: int, first_pair: int):
-        """The chunk's kept noise (given up: a part is asked for once), or None."""
+        """What was kept of the chunk (given up: a chunk is asked for once), or None."""
         with self._lock:
-            noise = self._noise.pop((seed, first_pair), None)
-            self.misses += noise is None
-            return noise
+            value = self._kept.pop((seed, first_pair), None)
+            self.misses += value is None
+            return value
 
     def __len__(self) -> int:
-        return len(self._noise)
+        return len(self._kept)
 
 
 class ChunkScorer:
@@ -193,10 +194,10 @@ class ChunkScorer:
         pair_scores = population.make_pair_scorer(config, env, layout)
         self._parts = es.gradient_parts(config, layout.perturbation)
         chunk_noise_bytes = config.chunk_size * layout.perturbation.noise_size * 4
-        self._kept = NoiseCache(chunk_noise_bytes, max_bytes=None if keep_noise else 0)  # 0: keeps nothing
+        self._kept = ChunkCache(chunk_noise_bytes, max_bytes=None if keep_noise else 0)  # 0: keeps nothing
         # Scores of chunks launched with one asked for, until they are asked for too (a chunk handed on alone,
         # after a fault, still runs its whole launch: its scores are that launch's).
-        self._spare_scores = NoiseCache(config.chunk_size * 2 * 4)
+        self._spare_scores = ChunkCache(config.chunk_size * 2 * 4)
         self._launch_pairs = config.chunk_size * config.chunks_per_launch
         self.launches_run = 0  # device calls of the rollout so far
 
@@ -267,6 +268,15 @@ class ChunkScorer:
     def _launch_of(self, first_pair: int) -> int:
         return first_pair - first_pair % self._launch_pairs
 
+    def _launches_of(self, first_pairs) -> list[int]:
+        """The launches that hold these chunks, each once, in the order first asked for."""
+        return list(dict.fromkeys(self._launch_of(first) for first in first_pairs))
+
+    def _chunk_rows(self, launch_rows: np.ndarray, first_pair: int) -> np.ndarray:
+        """A chunk's rows [chunk_size, ...] of its launch's (the launch's chunks one after another)."""
+        offset = first_pair % self._launch_pairs
+        return launch_rows[offset:offset + self.config.chunk_size]
+
     def score(self, theta: np.ndarray, seed: int, first_pair: int) -> np.ndarray:
         """Scores [chunk_size, 2] of the pairs from ``first_pair`` on, on whichever device is free."""
         return self.score_many(theta, seed, [first_pair])[0]
@@ -280,7 +290,7 @@ class ChunkScorer:
         """
         size = self.config.chunk_size
         scores = {first: self._spare_scores.take(seed, first) for first in first_pairs}
-        launches = list(dict.fromkeys(self._launch_of(first) for first, got in scores.items() if got is None))
+        launches = self._launches_of(first for first, got in scores.items() if got is None)
         if not launches:
             return [scores[first] for first in first_pairs]
         index = self._free.get()
@@ -292,13 +302,13 @@ class ChunkScorer:
             self._free.put(index)
         whole = self.config.chunks_per_launch == 1
         for launch, (_, noise) in started:
-            for offset in range(0, self._launch_pairs, size):
-                first, rows = launch + offset, launched[launch][offset:offset + size]
+            for first in range(launch, launch + self._launch_pairs, size):
+                rows = self._chunk_rows(launched[launch], first)
                 if first not in scores:
                     self._spare_scores.keep(seed, first, rows)
                 elif scores[first] is None:
                     scores[first] = rows
-                self._kept.keep(seed, first, noise if whole else noise[offset:offset + size])
+                self._kept.keep(seed, first, noise if whole else self._chunk_rows(noise, first))
         return [scores[first] for first in first_pairs]
 
     def gradient_part(self, seed: int, first_pair: int, weights: np.ndarray) -> np.ndarray:
@@ -338,12 +348,12 @@ class ChunkScorer:
         self.wait_until_compiled()
         theta = np.asarray(theta, np.float32)
         on_device = [self._jax.device_put(theta, device) for device in self.devices]
-        launches = list(dict.fromkeys(self._launch_of(first) for first in first_pairs))
+        launches = self._launches_of(first_pairs)
         pending = {launch: self._dispatch(i % self.num_devices, on_device[i % self.num_devices], seed, launch)[0]
                    for i, launch in enumerate(launches)}
         launched = {launch: np.asarray(scores, np.float32) for launch, scores in pending.items()}
-        size = self.config.chunk_size
-        return [launched[self._launch_of(first)][first % self._launch_pairs:][:size] for first in first_pairs]
+        return [self._chunk_rows(launched[self._launch_of(first)], first) for first in first_pairs]
+
 
 def _launch_noise(chunk_noise, chunks: int, chunk_size: int):
     """jit(seed, first_pair) -> the noise of ``chunks`` consecutive chunks [chunks * chunk_size, noise_size]:

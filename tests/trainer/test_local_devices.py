@@ -147,8 +147,8 @@ def test_a_scorer_that_keeps_no_noise_regenerates_every_part(theta_and_reference
     assert scorer.regenerated_parts == 1
 
 
-def test_the_noise_cache_keeps_the_two_newest_seeds_within_its_byte_cap():
-    cache = local_devices.NoiseCache(chunk_bytes=10, max_bytes=30)
+def test_the_chunk_cache_keeps_the_two_newest_seeds_within_its_byte_cap():
+    cache = local_devices.ChunkCache(chunk_bytes=10, max_bytes=30)
     cache.keep(1, 0, "1/0")
     cache.keep(2, 0, "2/0")
     cache.keep(1, 2, "1/2")  # a straggler of the seed before: kept, evicts nothing
