@@ -70,7 +70,7 @@ def compare_runs(path_a: Path, path_b: Path, episodes: int, seed: int) -> dict:
     result = {}
     for name, path, run in (("a", path_a, run_a), ("b", path_b, run_b)):
         result.update({f"run_{name}": str(path), f"method_{name}": run.config.method,
-                       f"planner_{name}": None if run.config.gradient_trained else run.config.planner,
+                       f"planner_{name}": run.config.planner,  # the baselines search with it too
                        f"env_{name}": environment(run.config),
                        f"iteration_{name}": run.iteration})
     paired = compare_scores(episode_scores(run_a, episodes, seed)[0], episode_scores(run_b, episodes, seed)[0],
@@ -86,8 +86,7 @@ def text_report(result: dict) -> str:
     low, high = result["ci95"]
     lines = []
     for name in ("a", "b"):
-        planner = result[f"planner_{name}"]  # None: a baseline, whose search is its method's own
-        agent = result[f"method_{name}"] + (f", planner {planner}" if planner is not None else "")
+        agent = f"{result[f'method_{name}']}, planner {result[f'planner_{name}']}"
         lines.append(f"run {name.upper()}: {result[f'run_{name}']} ({agent}, {result[f'env_{name}']}, "
                      f"iteration {result[f'iteration_{name}']})")
     return "\n".join([

@@ -125,6 +125,16 @@ def test_a_baseline_on_discretised_actions_plays_pizeros_episodes(tmp_path):
         check_same_episodes(pizero, longer, (paths["pizero"], paths["alphazero"]), 16, 0)
 
 
+def test_a_baseline_is_reported_with_the_planner_it_searches_with(runs_here, tmp_path, capsys):
+    """AlphaZero's search is config.planner's policy (baselines.search): the report names it as eval does."""
+    baseline = tmp_path / "alphazero-gumbel"
+    run_dir.write_config(baseline, build_config("tiny", env="tsp", method="alphazero", planner="gumbel"))
+    result = _compare(baseline, runs_here["untrained"], capsys, "--episodes", "4")
+    assert (result["method_a"], result["planner_a"]) == ("alphazero", "gumbel")
+    assert evaluate_run(baseline, episodes=4, seed=0)["planner"] == "gumbel"
+    assert text_report(result).splitlines()[0] == f"run A: {baseline} (alphazero, planner gumbel, tsp, iteration 0)"
+
+
 @pytest.mark.parametrize("env, env_args, named", [("tsp", {"num_cities": 5}, "(tsp num_cities=5)"),
                                                   ("flp", {}, "(flp)")])
 def test_runs_on_different_episodes_are_a_one_line_error_naming_both(runs_here, tmp_path, capsys, env, env_args,
