@@ -11,7 +11,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from pizero_ray.config import ConfigError
+from pizero_ray.config import Config, ConfigError
 from pizero_ray.settings import check_minimums, lookup, setting
 from pizero_ray.trainer import compile_cache
 
@@ -61,7 +61,8 @@ class PoolOptions:
     chunks_per_call: int = setting(
         1, flag="--chunks-per-call", minimum=1,
         help="chunks a worker is handed in one call: fewer calls for the driver when an iteration has thousands "
-             "(each chunk is still scored alone: the parameters are the same)")
+             "(each chunk is still scored alone: the parameters are the same); a multiple of "
+             "--chunks-per-launch, or 1 for one launch a call")
     worker_start_timeout_s: float = 900.0  # no ready worker for this long: give up
     in_flight_per_worker: int = 2  # per device: keeps a worker busy while its last result travels
     worker_resources: tuple[tuple[str, float], ...] = ()  # custom Ray resources each worker needs
@@ -95,6 +96,19 @@ class PoolOptions:
         if self.max_workers is not None and self.max_workers < self.workers:
             raise ConfigError(f"{_flag(PoolOptions, 'max_workers')} {self.max_workers} is below "
                               f"{_flag(PoolOptions, 'workers')} {self.workers}")
+        return self
+
+    def check_against(self, config: Config) -> "PoolOptions":
+        """Raises ConfigError, one line naming both values, on an option that does not fit the ``Config``.
+
+        A call carries whole launches (``config.chunks_per_launch`` chunks, run
+        as one device call): a launch split across two calls would run on two
+        workers, each computing all of it. 1, the default, is a launch a call.
+        """
+        per_call, per_launch = self.chunks_per_call, config.chunks_per_launch
+        if per_call != 1 and per_call % per_launch != 0:
+            raise ConfigError(f"{_flag(PoolOptions, 'chunks_per_call')} {per_call} is not a multiple of "
+                              f"{_flag(Config, 'chunks_per_launch')} {per_launch}")
         return self
 
 

@@ -119,6 +119,7 @@ class IterationResult:
 class WorkerPool:
     def __init__(self, config: Config, options: PoolOptions, factory=None):
         """``factory``: a ``workers.WorkerFactory`` (stub workers, say); None for ``RolloutWorker`` actors."""
+        options.check_against(config)  # before any worker is asked for
         self._config = config
         self._options = options
         self._factory = factory
@@ -293,7 +294,8 @@ class WorkerPool:
 
     @property
     def chunks_per_call(self) -> int:
-        """Chunks handed to a worker in one call: ``--chunks-per-call``, and never fewer than a launch's."""
+        """Chunks handed to a worker in one call: ``--chunks-per-call``, whole launches (``check_against``), and
+        never fewer than a launch's."""
         return max(self._options.chunks_per_call, self._config.chunks_per_launch)
 
     def gradient_parts(

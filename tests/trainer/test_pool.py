@@ -446,3 +446,20 @@ def test_workers_that_die_starting_stop_the_run_with_the_error_in_one_line(tmp_p
     assert "\n" not in message
     assert message == ("workers keep dying while starting: "
                        "ValueError: the environment's step returned a reward of shape (3,)")
+
+
+def test_chunks_per_call_must_be_a_whole_number_of_launches():
+    """A call of 3 chunks with launches of 2 would split a launch across two calls, run on two workers."""
+    from pizero_ray.config import ConfigError
+    from pizero_ray.trainer.options import PoolOptions
+    from pizero_ray.trainer.pool import WorkerPool
+
+    launches_of_two = dataclasses.replace(CONFIG, chunks_per_launch=2)
+    with pytest.raises(ConfigError) as raised:
+        PoolOptions(chunks_per_call=3).check_against(launches_of_two)
+    assert str(raised.value) == "--chunks-per-call 3 is not a multiple of --chunks-per-launch 2"
+    PoolOptions(chunks_per_call=4).check_against(launches_of_two)
+    PoolOptions().check_against(launches_of_two)  # 1, the default: a launch per call
+    PoolOptions(chunks_per_call=3).check_against(CONFIG)
+    with pytest.raises(ConfigError):  # before any worker is asked for
+        WorkerPool(launches_of_two, PoolOptions(chunks_per_call=3))
