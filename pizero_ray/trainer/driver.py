@@ -154,7 +154,7 @@ class _Run:
         import ray
 
         started = time.time()
-        lost_before = self.pool.workers_lost
+        lost_before, hung_before = self.pool.workers_lost, self.pool.workers_killed_hung
         seed = self.method.ask(self.state)
         theta_ref = ray.put(np.asarray(self.state.theta))  # once per iteration; each node fetches it once
         result = self.pool.score_population(theta_ref, seed, self.state.iteration, should_stop=stop)
@@ -170,6 +170,7 @@ class _Run:
         now = time.time()
         row = {"iteration": state.iteration, **_score_stats(stats), "requeued_chunks": result.requeued_chunks,
                "workers_lost": self.pool.workers_lost - lost_before,
+               "workers_killed_hung": self.pool.workers_killed_hung - hung_before,
                "gradient_parts_on_driver": parts_here, "iteration_time_s": now - started,
                "update_time_s": now - scored, "wall_time_s": self.wall_time_s(),
                "gradient_norm": stats.gradient_norm, "update_norm": stats.update_norm,
@@ -251,9 +252,11 @@ def train(
     With ``options.minutes`` it also stops, after the iteration under way,
     once the run's training wall-clock (across resumes) reaches the budget.
     Returns {"iteration", "parameter_hash", "stopped_by", "out_of_time",
-    "workers_killed"}: ``stopped_by`` names the signal that interrupted
-    training (after a checkpoint was saved), or None; ``out_of_time`` says
-    the wall-clock budget ended it. Refuses (``writer_lock.RunDirInUse``) a
+    "workers_killed", "workers_lost", "workers_killed_hung"}: ``stopped_by``
+    names the signal that interrupted training (after a checkpoint was saved),
+    or None; ``out_of_time`` says the wall-clock budget ended it; the workers
+    SIGKILLed by a chaos run's schedule, the workers found dead (actor death,
+    node loss), and those the pool killed as hung. Refuses (``writer_lock.RunDirInUse``) a
     run dir that another live process is writing. ``worker_factory`` (a
     ``workers.WorkerFactory``) replaces the rollout workers (the scale model's stubs).
     """
@@ -295,4 +298,6 @@ def _train(run_path: Path, config: Config, options: RunOptions, on_iteration, on
     stopped_by = signal.Signals(stop.signal).name if stop.signal is not None else None
     return {"iteration": run.state.iteration, "parameter_hash": runs.parameter_hash(np.asarray(run.state.theta)),
             "stopped_by": stopped_by, "out_of_time": stop.signal is None and not run.reached_iterations(),
-            "workers_killed": run.pool.kills if run.pool else 0}
+            "workers_killed": run.pool.chaos_kills if run.pool else 0,
+            "workers_lost": run.pool.workers_lost if run.pool else 0,
+            "workers_killed_hung": run.pool.workers_killed_hung if run.pool else 0}

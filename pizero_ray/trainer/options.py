@@ -63,7 +63,10 @@ class PoolOptions:
         help="chunks a worker is handed in one call: fewer calls for the driver when an iteration has thousands "
              "(each chunk is still scored alone: the parameters are the same); a multiple of "
              "--chunks-per-launch, or 1 for one launch a call")
-    worker_start_timeout_s: float = 900.0  # no ready worker for this long: give up
+    worker_wait_minutes: float = setting(
+        15.0, flag="--worker-wait-minutes",
+        help="how long the run waits with no live worker (at start-up, or after losing them all) for the "
+             "cluster to supply one before it stops: long enough for a spot cluster to replace its nodes")
     in_flight_per_worker: int = 2  # per device: keeps a worker busy while its last result travels
     worker_resources: tuple[tuple[str, float], ...] = ()  # custom Ray resources each worker needs
     # Chaos: (iteration, chunk) pairs; right after that chunk is handed out, its worker's process is SIGKILLed.
@@ -91,8 +94,9 @@ class PoolOptions:
                               f"got {self.gradient_on!r}")
         if not 0 < self.min_fraction <= 1:
             raise ConfigError(f"{_flag(PoolOptions, 'min_fraction')} must be in (0, 1], got {self.min_fraction}")
-        if self.chunk_timeout_s <= 0:
-            raise ConfigError(f"{_flag(PoolOptions, 'chunk_timeout_s')} must be positive, got {self.chunk_timeout_s}")
+        for name in ("chunk_timeout_s", "worker_wait_minutes"):
+            if getattr(self, name) <= 0:
+                raise ConfigError(f"{_flag(PoolOptions, name)} must be positive, got {getattr(self, name)}")
         if self.max_workers is not None and self.max_workers < self.workers:
             raise ConfigError(f"{_flag(PoolOptions, 'max_workers')} {self.max_workers} is below "
                               f"{_flag(PoolOptions, 'workers')} {self.workers}")

@@ -10,12 +10,20 @@ actors on newly joined nodes start as soon as the cluster has room (which is
 also the demand an autoscaler sees). Only workers that finished compiling get
 chunks. Every wait has a timeout, and looks at the driver's stop request at
 least every ``POLL_S``.
+
+A cluster may have no live worker for a while (at start-up, or when it loses
+every node at once and an autoscaler replaces them): the pool waits for one up
+to ``--worker-wait-minutes``, counted from the start or from the loss of the
+last live worker, and stops only then. Workers that die starting stop the run
+only when one cause keeps killing them (``_StartupDeaths``).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import pickle
+import re
 import time
 from collections import deque
 from dataclasses import dataclass, field
@@ -24,12 +32,14 @@ from typing import Any, Callable
 import numpy as np
 
 from pizero_ray.config import Config
+from pizero_ray.settings import lookup
 from pizero_ray.trainer.options import PoolOptions
 
 POLL_S = 0.5  # how often the driver looks up from ray.wait (signals, deadlines)
 EXPIRY_CHECK_S = 0.1  # how often it looks for hung workers (deadlines are chunk timeouts: seconds or more)
 MAX_CHUNK_FAILURES = 5  # a chunk that kills this many workers is a bug, not bad luck
-MAX_STARTUP_FAILURES = 3  # consecutive actors dying in __init__ means they never will start
+MAX_STARTUP_DEATHS = 3  # starts one cause killed, with no worker ready in between: workers never will start
+_log = logging.getLogger(__name__)
 
 
 class TrainingError(RuntimeError):
@@ -116,6 +126,83 @@ class IterationResult:
     traffic: Traffic = field(default_factory=Traffic)
 
 
+_NODE_DIED = re.compile(r"node has died\. Node Id: ([0-9a-fA-F]+)")
+
+
+def _dead_node(error: BaseException) -> str | None:
+    """The node whose death killed an actor, as Ray's error names it; None where the actor died otherwise."""
+    found = _NODE_DIED.search(str(error))
+    return found.group(1) if found else None
+
+
+def _clock(seconds: float) -> str:
+    return time.strftime("%H:%M:%S", time.localtime(seconds))
+
+
+def _resources(amounts: dict) -> str:
+    return ", ".join(f"{name} {amount:g}" for name, amount in amounts.items())
+
+
+class _StartupDeaths:
+    """Workers that died starting since a worker last became ready, by cause.
+
+    A cause is the error's last line (what ``__init__`` raised, say), or the
+    death of the worker's node: the workers a node held while they started
+    die together, and count once for their node. One cause that has killed
+    ``MAX_STARTUP_DEATHS`` starts stops the run; causes do not add up, so a
+    node lost while its workers start does not stop the others starting.
+    """
+
+    NODE_DIED = "their node died"
+
+    def __init__(self):
+        self._by_cause: dict[str, set] = {}
+
+    def clear(self) -> None:
+        self._by_cause.clear()
+
+    def record(self, error: BaseException) -> str | None:
+        """Counts a worker that died starting; returns why the run should stop once its cause has killed too
+        many starts, else None."""
+        node = _dead_node(error)
+        cause = self.NODE_DIED if node else last_line(error)
+        deaths = self._by_cause.setdefault(cause, set())
+        deaths.add(node or object())  # a node once, however many of its workers died; any other worker each
+        if len(deaths) < MAX_STARTUP_DEATHS:
+            return None
+        nodes = f" ({len(deaths)} nodes, with no worker ready in between)" if node else ""
+        return f"workers keep dying while starting: {cause}{nodes}"
+
+
+class _LiveWorkerWait:
+    """How long the pool has been without a live (ready) worker: since it started, or since it lost its last."""
+
+    def __init__(self, wait_minutes: float):
+        self.wait_minutes = wait_minutes
+        self.since: float | None = time.time()  # none is live at the start
+        self.after_loss = False  # the wait began when the pool lost its last live worker (else: at its start)
+
+    def live(self) -> None:
+        self.since = None
+
+    def none_live(self, now: float) -> None:
+        """The pool has no live worker: a wait begins, unless one is under way, and is announced once."""
+        if self.since is None:
+            self.since, self.after_loss = now, True
+            _log.warning("pizero: no live worker since %s; waiting up to %g min for the cluster to supply one",
+                         _clock(now), self.wait_minutes)
+
+    def over(self, now: float) -> bool:
+        return self.since is not None and now - self.since > 60.0 * self.wait_minutes
+
+    def gave_up(self, now: float, cluster: str) -> str:
+        """The one-line reason the pool stops: since when it has had no live worker, and what the cluster has."""
+        when = "when the pool lost its last one" if self.after_loss else "when the pool started"
+        flag = lookup(PoolOptions, "worker_wait_minutes").flag
+        return (f"no live worker since {_clock(self.since)} ({now - self.since:.0f} s), {when}; gave up after "
+                f"{flag} {self.wait_minutes:g}; {cluster}")
+
+
 class WorkerPool:
     def __init__(self, config: Config, options: PoolOptions, factory=None):
         """``factory``: a ``workers.WorkerFactory`` (stub workers, say); None for ``RolloutWorker`` actors."""
@@ -126,10 +213,14 @@ class WorkerPool:
         self._config_json = config.to_json()
         self._workers: list[_Worker] = []
         self._stale: dict = {}  # refs of chunks dropped by min_fraction -> (their worker, deadline)
-        self._startup_failures = 0
-        self._last_ready_time = time.time()
-        self.kills = 0
-        self.workers_lost = 0  # ready workers found dead or hung and dropped, over the pool's life
+        self._startup_deaths = _StartupDeaths()
+        self._wait = _LiveWorkerWait(options.worker_wait_minutes)
+        self._cluster_checked = False  # whether the cluster's size was held against --workers (once)
+        # Over the pool's life: workers SIGKILLed by a chaos run's schedule; ready workers found dead (actor
+        # death, node loss, chaos kills among them); ready workers the pool killed as hung (past a deadline).
+        self.chaos_kills = 0
+        self.workers_lost = 0
+        self.workers_killed_hung = 0
         self._kills_done: set[tuple[int, int]] = set()
         self._traffic = Traffic()  # the current iteration's bytes (score_population starts a new count)
         self.top_up()
@@ -151,7 +242,7 @@ class WorkerPool:
             os.kill(worker.info["pid"], signal.SIGKILL)
         else:
             self._stop(worker.actor)
-        self.kills += 1
+        self.chaos_kills += 1
 
     def top_up(self) -> None:
         """Asks Ray for actors up to ``target_workers``; they start when the cluster has room."""
@@ -177,13 +268,13 @@ class WorkerPool:
             return
         except RayError as error:
             self._drop(worker, kill=True)  # dead already, unless only its call was lost: never leak it
-            self._startup_failures += 1
-            if self._startup_failures >= MAX_STARTUP_FAILURES:
-                raise TrainingError(f"workers keep dying while starting: {last_line(error)}") from None
+            given_up = self._startup_deaths.record(error)
+            if given_up:
+                raise TrainingError(given_up) from None
             return
         worker.ready = True
-        self._startup_failures = 0
-        self._last_ready_time = time.time()
+        self._startup_deaths.clear()
+        self._wait.live()
 
     def _expire_stale(self, now: float) -> None:
         """A worker still on a chunk dropped by min_fraction past its deadline is hung: kill it (top_up replaces it)."""
@@ -193,7 +284,7 @@ class WorkerPool:
         if expired:  # a result that is in but not yet collected (one per ray.wait) is no hang
             done, _ = ray.wait(expired, num_returns=len(expired), timeout=0, fetch_local=False)
             for ref in set(expired) - set(done):
-                self.lose(self._stale[ref][0])
+                self.lose(self._stale[ref][0], hung=True)
         for ref, (worker, _) in list(self._stale.items()):
             if worker not in self._workers:  # gone (killed above, or died): nothing to wait for
                 del self._stale[ref]
@@ -209,13 +300,19 @@ class WorkerPool:
         if kill:
             self._stop(worker.actor)
 
-    def lose(self, worker: _Worker) -> None:
-        """A ready worker died or hung: drop it (killed, so a hung or half-dead actor frees its resources), and
-        check its idle node-mates before they get chunks: a node lost takes all its workers at once."""
+    def lose(self, worker: _Worker, hung: bool = False) -> None:
+        """A ready worker died (or ``hung``: missed a deadline): drop it (killed, so a hung or half-dead actor
+        frees its resources), count it, and check its idle node-mates before they get chunks: a node lost takes
+        all its workers at once. The pool's last live worker lost starts the wait for another."""
         if worker not in self._workers:
             return
         self._drop(worker, kill=True)
-        self.workers_lost += 1
+        if hung:
+            self.workers_killed_hung += 1
+        else:
+            self.workers_lost += 1
+        if self.live_workers == 0:
+            self._wait.none_live(time.time())
         node = worker.info.get("node_id")
         deadline = time.time() + self._options.chunk_timeout_s
         for mate in self._workers:
@@ -229,14 +326,16 @@ class WorkerPool:
 
         try:
             ray.get(worker.ping_ref, timeout=POLL_S)
-        except (RayError, GetTimeoutError):
+        except GetTimeoutError:  # (a RayError too) its answer is in but cannot be fetched: killed as hung
+            self.lose(worker, hung=True)
+        except RayError:
             self.lose(worker)
         worker.ping_ref = None
 
     def _expire_pings(self, now: float) -> None:
         """A suspect that has not answered its ping by the chunk timeout is hung: drop it."""
         for worker in [w for w in self._workers if w.ping_ref is not None and now > w.ping_deadline]:
-            self.lose(worker)
+            self.lose(worker, hung=True)
             worker.ping_ref = None
 
     def shutdown(self) -> None:
@@ -251,6 +350,7 @@ class WorkerPool:
         """Scores of every chunk of the population (or ``min_fraction`` of them) at ``theta_ref``."""
 
         self._traffic = Traffic()
+        self._warn_if_the_cluster_is_too_small()
         queue = _ChunkQueue(self, theta_ref, seed, iteration, self._traffic)
         checked = 0.0
         while not queue.enough():
@@ -258,39 +358,69 @@ class WorkerPool:
                 raise Interrupted()
             self.top_up()
             queue.dispatch()
-            starting = {w.ready_ref: w for w in self._workers if not w.ready}
-            pinged = {w.ping_ref: w for w in self._workers if w.ping_ref is not None}
-            waitable = list(queue.in_flight) + list(starting) + list(pinged) + list(self._stale)
-            for ref in _all_ready(waitable):
-                if ref in starting:
-                    self._started(starting[ref], ref)
-                elif ref in pinged:
-                    self._pinged(pinged[ref])
-                elif ref in self._stale:
-                    self._stale.pop(ref)[0].in_flight -= 1
-                else:
-                    queue.collect(ref)
+            self._handle_answers(queue)
             now = time.time()
             if now >= checked + EXPIRY_CHECK_S:  # deadlines are seconds apart: not at every result
                 checked = now
                 self._expire_stale(now)
                 self._expire_pings(now)
                 queue.expire(now)
-                self._check_workers_start(now)
+                self._check_for_live_workers(now)
         # min_fraction: stragglers finish in the background and are ignored, by their deadlines.
         for ref, (_, worker, deadline) in queue.in_flight.items():
             self._stale[ref] = (worker, deadline)
         return queue.result()
 
-    def _check_workers_start(self, now: float) -> None:
-        if self.live_workers == 0 and now - self._last_ready_time > self._options.worker_start_timeout_s:
+    def _handle_answers(self, queue: _ChunkQueue) -> None:
+        """Waits up to POLL_S for the calls the pool is waiting on (chunks, starts, pings, stragglers), and takes
+        each that is done."""
+        starting = {w.ready_ref: w for w in self._workers if not w.ready}
+        pinged = {w.ping_ref: w for w in self._workers if w.ping_ref is not None}
+        waitable = list(queue.in_flight) + list(starting) + list(pinged) + list(self._stale)
+        for ref in _all_ready(waitable):
+            if ref in starting:
+                self._started(starting[ref], ref)
+            elif ref in pinged:
+                self._pinged(pinged[ref])
+            elif ref in self._stale:
+                self._stale.pop(ref)[0].in_flight -= 1
+            else:
+                queue.collect(ref)
+
+    def _check_for_live_workers(self, now: float) -> None:
+        """Stops the run once it has had no live worker for ``--worker-wait-minutes``, saying what the cluster has."""
+        if self.live_workers == 0 and self._wait.over(now):
             import ray
 
-            raise TrainingError(
-                f"no worker has been ready for {self._options.worker_start_timeout_s:.0f} s "
-                f"(asking for {self._options.cpus_per_worker} CPU / {self._options.gpus_per_worker} GPU each; "
-                f"cluster has {ray.available_resources()} available)"
-            )
+            available = ray.available_resources()
+            needs = self._worker_needs()
+            raise TrainingError(self._wait.gave_up(now, (
+                f"each worker asks for {_resources(needs)}; the cluster has "
+                f"{_resources({name: available.get(name, 0.0) for name in needs})} available")))
+
+    def _worker_needs(self) -> dict[str, float]:
+        """The Ray resources a worker asks for."""
+        options = self._options
+        return {"CPU": options.cpus_per_worker, "GPU": options.gpus_per_worker, **dict(options.worker_resources)}
+
+    def _warn_if_the_cluster_is_too_small(self) -> None:
+        """Once, at the first iteration: a line when the cluster cannot hold ``--workers`` workers at once (the
+        metrics' ``workers`` then says how many are live)."""
+        if self._cluster_checked or self._factory is not None:  # a factory's workers ask for what they like
+            return
+        self._cluster_checked = True
+        import ray
+
+        total = ray.cluster_resources()
+        fits = {name: (int(total.get(name, 0.0) / need + 1e-9), need)
+                for name, need in self._worker_needs().items() if need > 0}
+        if not fits:
+            return
+        name, (most, need) = min(fits.items(), key=lambda item: item[1][0])
+        if most < self._options.workers:
+            _log.warning("pizero: warning: asked for %d workers of %g %s each; the cluster has %g %s in all: at "
+                         "most %d can run at once", self._options.workers, need, name, total.get(name, 0.0), name,
+                         most)
 
     @property
     def chunks_per_call(self) -> int:
@@ -363,9 +493,9 @@ class WorkerPool:
         return asked
 
     def _collect_parts(self, asked: dict, should_stop: Callable[[], bool]) -> dict[int, np.ndarray]:
-        """The parts that come back within the chunk timeout: {chunk index: part}; the rest are left out."""
+        """The parts that come back within the chunk timeout: {chunk index: part}; the rest are left out, and a
+        worker still on one past the timeout is hung: killed, as one past a chunk's deadline is."""
         import ray
-        from ray.exceptions import GetTimeoutError, RayError, RayTaskError
 
         parts: dict[int, np.ndarray] = {}
         waiting = dict(asked)
@@ -374,23 +504,32 @@ class WorkerPool:
             if should_stop():
                 raise Interrupted()
             left = deadline - time.time()
-            if left <= 0:
-                break  # slow workers: their parts are computed here
-            ready_refs, _ = ray.wait(list(waiting), num_returns=len(waiting), timeout=min(POLL_S, left))
+            # Past the deadline, one last look without waiting: a part that is in is no hang.
+            ready_refs, _ = ray.wait(list(waiting), num_returns=len(waiting), timeout=max(0.0, min(POLL_S, left)))
             for ref in ready_refs:
-                indices, worker = waiting.pop(ref)
-                try:
-                    answer = ray.get(ref, timeout=POLL_S)
-                    self._traffic.from_workers += serialized_bytes(answer)
-                    parts.update(zip(indices, answer if len(indices) > 1 else [answer]))
-                except RayTaskError as error:
-                    raise TrainingError(f"a worker failed computing chunk {indices[0]}'s gradient part: "
-                                        f"{error}") from None
-                except GetTimeoutError:
-                    pass  # (a RayError too) slow, not dead: the part is computed elsewhere
-                except RayError:
-                    self.lose(worker)  # the worker died: the part is computed elsewhere
+                self._take_parts(ref, *waiting.pop(ref), parts)
+            if left <= 0:
+                break
+        for worker in {worker: None for _, worker in waiting.values()}:
+            self.lose(worker, hung=True)  # its parts are computed elsewhere
         return parts
+
+    def _take_parts(self, ref, indices: tuple[int, ...], worker: _Worker, parts: dict[int, np.ndarray]) -> None:
+        """A gradient-part call is done: its parts go into ``parts``, unless its worker died (lost)."""
+        import ray
+        from ray.exceptions import GetTimeoutError, RayError, RayTaskError
+
+        try:
+            answer = ray.get(ref, timeout=POLL_S)
+        except RayTaskError as error:
+            raise TrainingError(f"a worker failed computing chunk {indices[0]}'s gradient part: {error}") from None
+        except GetTimeoutError:
+            return  # (a RayError too) slow to fetch, not dead: the part is computed elsewhere
+        except RayError:
+            self.lose(worker)  # the worker died: the part is computed elsewhere
+            return
+        self._traffic.from_workers += serialized_bytes(answer)
+        parts.update(zip(indices, answer if len(indices) > 1 else [answer]))
 
 
 def _all_ready(refs: list) -> list:
@@ -494,8 +633,11 @@ class _ChunkQueue:
             returned = ray.get(ref, timeout=self.pool._options.chunk_timeout_s)
         except RayTaskError as error:
             raise TrainingError(f"a worker failed evaluating chunks {list(indices)}: {error}") from None
-        except (RayError, GetTimeoutError):
-            self._fail(indices, worker)  # the worker died (or its node did): the chunks run elsewhere
+        except GetTimeoutError:  # (a RayError too) its result is in but cannot be fetched: killed as hung
+            self._fail(indices, worker, hung=True)
+            return
+        except RayError:
+            self._fail(indices, worker, hung=False)  # the worker died (or its node did): the chunks run elsewhere
             return
         self.traffic.from_workers += serialized_bytes(returned)
         for index, scores in zip(indices, [returned] if len(indices) == 1 else returned, strict=True):
@@ -515,23 +657,23 @@ class _ChunkQueue:
             done, _ = ray.wait(expired, num_returns=len(expired), timeout=0, fetch_local=False)
             for ref in set(expired) - set(done):
                 indices, worker, _ = self.in_flight.pop(ref)
-                self._fail(indices, worker)
+                self._fail(indices, worker, hung=True)
         for ref, (indices, worker, _) in list(self.in_flight.items()):
             if worker not in self.pool._workers:  # dropped: its other chunks go back too
                 del self.in_flight[ref]
                 self.pending.extendleft(reversed(indices))
                 self.requeued += len(indices)
 
-    def _fail(self, indices: tuple[int, ...], worker: _Worker) -> None:
-        """The worker died or hung on the call of chunks ``indices``: they go back, first in line; the worker is
-        lost."""
+    def _fail(self, indices: tuple[int, ...], worker: _Worker, hung: bool) -> None:
+        """The worker died or ``hung`` on the call of chunks ``indices``: they go back, first in line; the worker
+        is lost."""
         for index in indices:
             self.failures[index] = self.failures.get(index, 0) + 1
             if self.failures[index] >= MAX_CHUNK_FAILURES:
                 raise TrainingError(f"chunk {index} failed on {self.failures[index]} workers; giving up")
         self.pending.extendleft(reversed(indices))
         self.requeued += len(indices)
-        self.pool.lose(worker)
+        self.pool.lose(worker, hung=hung)
 
     def result(self) -> IterationResult:
         population = self.num_chunks * self.chunk

@@ -14,13 +14,19 @@ def untied_scores(seed: int, first_pair: int, chunk: int) -> np.ndarray:
 
 
 def use(monkeypatch, config, hang_on=None, part_delay_s: float = 0.0, sigterm_on_seed=None,
-        scores: Callable[[int, int, int], np.ndarray] = untied_scores) -> None:
+        scores: Callable[[int, int, int], np.ndarray] = untied_scores, hang_once_on=None,
+        start_delay_s: Callable[[int], float] = lambda number: 0.0, started_dir: str | None = None) -> None:
     """The pool's workers become fakes: ``scores(seed, first pair, chunk size)`` for each chunk, zero parts.
 
-    ``hang_on``: (seed, first pair) of a chunk that never finishes; ``part_delay_s``:
+    ``hang_on``: (seed, first pair) of a chunk that never finishes; ``hang_once_on``: one that
+    never finishes on the first worker handed it, and finishes on the next; ``part_delay_s``:
     how long ``gradient_part`` takes; ``sigterm_on_seed``: ``gradient_part`` of that
     seed first sends SIGTERM to this (the driver's) process, once, then hangs.
+    ``start_delay_s(n)``: how long the n-th worker started (from 0) takes in ``__init__``;
+    ``started_dir``: each worker writes a file there as its ``__init__`` begins. Workers
+    ask Ray for the custom resources the pool asks for (``--worker-resources``), no CPUs.
     """
+    import itertools
     import os
     import tempfile
 
@@ -31,9 +37,17 @@ def use(monkeypatch, config, hang_on=None, part_delay_s: float = 0.0, sigterm_on
     chunk = config.chunk_size
     size = population.flat_params(config, envs.make(config.env))[1].size
     driver_pid = os.getpid()
-    signalled = os.path.join(tempfile.mkdtemp(prefix="pizero-fake-sigterm-"), "sent")
+    markers = tempfile.mkdtemp(prefix="pizero-fake-markers-")
+    signalled, hung_once = os.path.join(markers, "sent"), os.path.join(markers, "hung")
 
     class FakeWorker:  # defined in a function: Ray pickles it by value
+        def __init__(self, start_delay_s: float = 0.0):
+            import os
+            import time
+            if started_dir is not None:
+                open(os.path.join(started_dir, str(os.getpid())), "w").close()
+            time.sleep(start_delay_s)
+
         def ready(self):
             import os
 
@@ -41,9 +55,16 @@ def use(monkeypatch, config, hang_on=None, part_delay_s: float = 0.0, sigterm_on
             return {"pid": os.getpid(), "node_id": ray.get_runtime_context().get_node_id(), "devices": 1}
 
         def score_chunk(self, theta, seed, first_pair):
+            import os
             import time
             if (seed, first_pair) == hang_on:
                 time.sleep(3600)
+            if (seed, first_pair) == hang_once_on:
+                try:  # the first worker handed the chunk hangs on it; the next one answers
+                    os.close(os.open(hung_once, os.O_CREAT | os.O_EXCL))
+                    time.sleep(3600)
+                except FileExistsError:
+                    pass
             return scores(seed, first_pair, chunk)
 
         def score_chunks(self, theta, seed, first_pairs):
@@ -68,8 +89,11 @@ def use(monkeypatch, config, hang_on=None, part_delay_s: float = 0.0, sigterm_on
         def gradient_parts(self, seed, first_pairs, weights):
             return [self.gradient_part(seed, first_pair, row) for first_pair, row in zip(first_pairs, weights)]
 
-    def start_worker(*args, **kwargs):
+    numbers = itertools.count()
+
+    def start_worker(config_json, num_cpus, num_gpus, compile_cache_dir, resources=None, *args, **kwargs):
         import ray
-        return ray.remote(FakeWorker).options(num_cpus=0, max_concurrency=2).remote()
+        return ray.remote(FakeWorker).options(num_cpus=0, max_concurrency=2, resources=resources or {}).remote(
+            start_delay_s(next(numbers)))
 
     monkeypatch.setattr(workers, "start_worker", start_worker)

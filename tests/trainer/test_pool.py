@@ -18,11 +18,11 @@ ITERATIONS = 4
 CONFIG = build_config("tiny", population=8, planner="none")
 
 
-def _train(path, compile_cache_dir, on_iteration=None, config=CONFIG, **options):
+def _train(path, compile_cache_dir, on_iteration=None, config=CONFIG, on_start=None, **options):
     run_dir.write_config(path, config)
     options = {"workers": 2, "checkpoint_every": 0, **options}
-    result = driver.train(path, config, driver.RunOptions.create(iterations=ITERATIONS, compile_cache=compile_cache_dir,
-                                                                 **options), on_iteration=on_iteration)
+    options = driver.RunOptions.create(iterations=ITERATIONS, compile_cache=compile_cache_dir, **options)
+    result = driver.train(path, config, options, on_iteration=on_iteration, on_start=on_start)
     return result, [row for row in run_dir.read_metrics(path) if row["iteration"] > 0]
 
 
@@ -74,6 +74,7 @@ def test_sigkilled_workers_mid_iteration(tmp_path, compile_cache_dir, reference_
     # the process holding them is SIGKILLed.
     result, rows = _train(tmp_path, compile_cache_dir, kill_schedule=frozenset({(1, 0), (2, 3)}))
     assert result["workers_killed"] == 2 and sum(row["workers_lost"] for row in rows) == 2
+    assert (result["workers_lost"], result["workers_killed_hung"]) == (2, 0)  # killed by chaos, found dead
     assert sum(row["requeued_chunks"] for row in rows) >= 2
     assert result["parameter_hash"] == reference_hash
 
@@ -419,6 +420,7 @@ def test_a_straggler_hung_past_the_chunk_timeout_is_killed_and_replaced(ray_sess
         time.sleep(2 * timeout_s + 0.5)  # past its deadline (it was handed out behind chunk 0: two timeouts)
         second = pool.score_population(theta_ref, 2)
         assert hung not in pool._workers and len(pool._workers) == 1  # killed, and a new worker in its slot
+        assert (pool.workers_killed_hung, pool.workers_lost) == (1, 0)
         assert second.valid.sum() >= CONFIG.population // 2
         _wait_until_dead(ray_session, hung.actor)
     finally:
@@ -463,3 +465,194 @@ def test_chunks_per_call_must_be_a_whole_number_of_launches():
     PoolOptions(chunks_per_call=3).check_against(CONFIG)
     with pytest.raises(ConfigError):  # before any worker is asked for
         WorkerPool(launches_of_two, PoolOptions(chunks_per_call=3))
+
+
+# ------------------------------------------------------------------ a cluster that shrinks, and what the pool counts
+
+# --worker-wait-minutes for these tests: 5 seconds without a live worker (a replacement fake worker took 1.1 s to
+# start on a busy 2-core machine), and 1 second where none is meant to start.
+WAIT_MINUTES = 5 / 60
+SHORT_WAIT_MINUTES = 1 / 60
+
+
+def _fake_run(path, monkeypatch, compile_cache_dir, **behaviour_and_options):
+    """A run on fake workers, the driver forming every gradient part from the fakes' scores: its parameters say
+    whether every chunk's scores arrived, once, whatever happened to the workers."""
+    behaviours = {"hang_once_on", "start_delay_s", "started_dir", "part_delay_s"}
+    fake_workers.use(monkeypatch, CONFIG, **{k: v for k, v in behaviour_and_options.items() if k in behaviours})
+    options = {k: v for k, v in behaviour_and_options.items() if k not in behaviours}
+    return _train(path, compile_cache_dir, gradient_on="driver", **options)
+
+
+def _warnings(caplog, text):
+    return [record.getMessage() for record in caplog.records if text in record.getMessage()]
+
+
+def test_a_run_that_loses_every_worker_late_waits_for_new_ones_and_ends_as_undisturbed(
+        tmp_path, ray_session, monkeypatch, compile_cache_dir, caplog):
+    """Both workers are killed in the third iteration, after the run has trained for longer than the worker wait,
+    and their replacements take a while to start. The wait counts from the loss, not from the last worker to
+    become ready: the run waits for them, says so once, and ends with the parameters of a run that lost
+    nothing."""
+    import os
+    import time
+
+    clean, _ = _fake_run(tmp_path / "clean", monkeypatch, compile_cache_dir)
+    started = tmp_path / "started"
+    started.mkdir()
+
+    def both_workers_up(info):  # so that both are ready from the first iteration on, and both are killed
+        deadline = time.time() + 60
+        while len(os.listdir(started)) < 2 and time.time() < deadline:
+            time.sleep(0.05)
+
+    def outlast_the_wait(row):
+        if row["iteration"] == 2:
+            time.sleep(60 * WAIT_MINUTES + 0.5)
+
+    result, rows = _fake_run(tmp_path / "chaos", monkeypatch, compile_cache_dir, on_start=both_workers_up,
+                             on_iteration=outlast_the_wait, started_dir=str(started),
+                             worker_wait_minutes=WAIT_MINUTES, kill_schedule=frozenset({(2, 0), (2, 1)}))
+    assert result["workers_killed"] == 2 and rows[2]["workers_lost"] == 2 and rows[2]["requeued_chunks"] >= 2
+    assert result["parameter_hash"] == clean["parameter_hash"]
+    (waiting,) = _warnings(caplog, "no live worker since")
+    assert "\n" not in waiting and "waiting up to 0.0833333 min for the cluster to supply one" in waiting
+
+
+def test_a_pool_that_lost_its_last_worker_waits_the_worker_wait_from_the_loss_then_says_so(
+        ray_session, monkeypatch):
+    """The pool's one worker has been ready for longer than the wait when it dies, and no replacement can
+    start (it asks for a resource no node has): the pool waits the whole wait from the loss, then stops with
+    one line saying how long it has had no live worker and what the cluster has."""
+    import time
+
+    import numpy as np
+
+    from pizero_ray.trainer.options import PoolOptions
+    from pizero_ray.trainer.pool import TrainingError
+
+    _fake_workers(monkeypatch)
+    options = PoolOptions(workers=1, compile_cache=None, worker_wait_minutes=SHORT_WAIT_MINUTES)
+    pool, theta_ref = _ready_pool(ray_session, options)
+    try:
+        time.sleep(60 * SHORT_WAIT_MINUTES + 0.5)
+        (worker,) = pool._workers
+        ray_session.kill(worker.actor, no_restart=True)
+        _wait_until_dead(ray_session, worker.actor)
+        pool._options = dataclasses.replace(options, worker_resources=(("no_such_node", 1.0),))
+        lost = time.time()
+        with pytest.raises(TrainingError) as raised:
+            pool.score_population(theta_ref, 2)
+        assert time.time() - lost >= 60 * SHORT_WAIT_MINUTES
+    finally:
+        pool.shutdown()
+    message = str(raised.value)
+    assert "\n" not in message and message.startswith("no live worker since ")
+    assert "when the pool lost its last one" in message and "--worker-wait-minutes 0.0166667" in message
+    assert "no_such_node 0" in message  # what the cluster has of what a worker asks for
+
+
+def test_a_node_lost_while_its_workers_start_does_not_stop_the_run(
+        tmp_path, ray_cluster, ray_session, monkeypatch, compile_cache_dir):
+    """Three of four workers start on a node that is removed before they are ready. They die together, of one
+    cause, with one node: one death at start-up, not three in a row, and the run goes on with the fourth."""
+    import os
+    import time
+
+    clean, _ = _fake_run(tmp_path / "clean", monkeypatch, compile_cache_dir)
+    doomed = ray_cluster.add_node(num_cpus=0, resources={"starting": 3}, object_store_memory=OBJECT_STORE_BYTES)
+    kept = ray_cluster.add_node(num_cpus=0, resources={"starting": 1}, object_store_memory=OBJECT_STORE_BYTES)
+    ray_cluster.wait_for_nodes()
+    started = tmp_path / "started"
+    started.mkdir()
+
+    def remove_the_node_as_its_workers_start(info):
+        deadline = time.time() + 60
+        while len(os.listdir(started)) < 4 and time.time() < deadline:
+            time.sleep(0.05)
+        ray_cluster.remove_node(doomed)
+
+    try:
+        result, rows = _fake_run(tmp_path / "run", monkeypatch, compile_cache_dir,
+                                 on_start=remove_the_node_as_its_workers_start, workers=4,
+                                 worker_resources=(("starting", 1.0),), start_delay_s=lambda number: 3.0,
+                                 started_dir=str(started))
+    finally:
+        ray_cluster.remove_node(kept)
+    assert result["parameter_hash"] == clean["parameter_hash"]
+    assert [row["workers"] for row in rows] == [1] * ITERATIONS
+
+
+def test_a_worker_that_misses_the_gradient_part_deadline_is_killed_as_hung(ray_session, monkeypatch):
+    import numpy as np
+
+    from pizero_ray.trainer.options import PoolOptions
+    from pizero_ray.trainer.pool import WorkerPool
+
+    _fake_workers(monkeypatch, part_delay_s=3600)
+    pool = WorkerPool(CONFIG, PoolOptions(workers=1, compile_cache=None, chunk_timeout_s=1.0, gradient_on="workers"))
+    try:
+        result = pool.score_population(ray_session.put(np.zeros(3, np.float32)), 1)
+        (worker,) = pool._workers
+        parts, computed_here = pool.gradient_parts(1, np.ones(CONFIG.population, np.float32), result.owners,
+                                                   lambda index: np.zeros(3, np.float32))
+        assert computed_here == CONFIG.num_chunks
+        assert worker not in pool._workers and (pool.workers_killed_hung, pool.workers_lost) == (1, 0)
+        _wait_until_dead(ray_session, worker.actor)
+    finally:
+        pool.shutdown()
+
+
+def test_a_worker_hung_on_a_chunk_counts_as_killed_hung_not_as_lost(
+        tmp_path, ray_session, monkeypatch, compile_cache_dir):
+    """The first worker handed chunk 1 of the second iteration hangs on it: the pool kills it at the chunk's
+    deadline, and the rows and the result count it as hung, not as lost (died) or killed by chaos."""
+    from pizero_ray import es
+
+    clean, _ = _fake_run(tmp_path / "clean", monkeypatch, compile_cache_dir)
+    result, rows = _fake_run(tmp_path / "hung", monkeypatch, compile_cache_dir, chunk_timeout_s=2.0,
+                             hang_once_on=(es.iteration_seed(CONFIG.seed, 1), CONFIG.chunk_size))
+    assert [row["workers_killed_hung"] for row in rows] == [0, 1, 0, 0]
+    assert [row["workers_lost"] for row in rows] == [0] * ITERATIONS
+    assert (result["workers_killed"], result["workers_lost"], result["workers_killed_hung"]) == (0, 0, 1)
+    assert result["parameter_hash"] == clean["parameter_hash"]
+
+
+def test_a_pool_asked_for_more_workers_than_the_cluster_holds_says_so_once(ray_session, monkeypatch, caplog):
+    import numpy as np
+
+    from pizero_ray.trainer.options import PoolOptions
+    from pizero_ray.trainer.pool import WorkerPool
+
+    _fake_workers(monkeypatch)  # the fakes ask for no CPU: they all start, but real ones of 2 CPUs could not
+    cpus = ray_session.cluster_resources()["CPU"]
+    pool = WorkerPool(CONFIG, PoolOptions(workers=4, cpus_per_worker=2, compile_cache=None))
+    try:
+        theta_ref = ray_session.put(np.zeros(3, np.float32))
+        pool.score_population(theta_ref, 1)
+        pool.score_population(theta_ref, 2)
+    finally:
+        pool.shutdown()
+    (said,) = _warnings(caplog, "asked for 4 workers")
+    assert said == (f"pizero: warning: asked for 4 workers of 2 CPU each; the cluster has {cpus:g} CPU in all: "
+                    f"at most {int(cpus // 2)} can run at once")
+
+
+def test_start_up_deaths_count_a_lost_node_once_and_each_cause_apart():
+    from pizero_ray.trainer.pool import _StartupDeaths
+
+    def node_died(node):  # the text Ray 2.60 gives an actor whose node died while it started
+        return RuntimeError(f"The actor died unexpectedly before finishing this task.\n\tclass_name: RolloutWorker\n"
+                            f"The actor died because its node has died. Node Id: {node}\n\tthe actor's node was "
+                            "terminated expectedly: received SIGTERM\nThe actor never ran - it was cancelled before "
+                            "it started running.")
+
+    deaths = _StartupDeaths()
+    assert [deaths.record(node_died("aa01")) for _ in range(4)] == [None] * 4  # one node's four workers: one
+    assert deaths.record(ValueError("a bad reward")) is None  # another cause: not added to the node's
+    assert deaths.record(node_died("bb02")) is None
+    assert deaths.record(node_died("cc03")) == ("workers keep dying while starting: their node died "
+                                                "(3 nodes, with no worker ready in between)")
+    deaths.clear()  # a worker became ready
+    assert [deaths.record(ValueError("a bad reward")) for _ in range(3)][-1] == (
+        "workers keep dying while starting: a bad reward")
