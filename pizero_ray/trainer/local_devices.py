@@ -235,12 +235,25 @@ class ChunkScorer:
             for index in range(1, len(self.devices)):
                 self._compiled[index] = compile_for(self.devices[index])
                 self._free.put(index)
-        except BaseException as error:  # the worker goes on with the devices it has; score_all reports it
+        except BaseException as error:  # the worker goes on with the devices that compiled (compile_report)
             self._compile_error = error
+
+    def wait_for_compiles(self) -> None:
+        """Returns once every device's compile is over, whether it succeeded or not (``compile_report``)."""
+        self._compiling.join()
+
+    def compile_report(self) -> dict:
+        """{"devices": devices compiled so far (the calls this scorer runs at once), "local_devices": all of
+        them, "compiling": whether others still compile, "compile_error": a failed compile's error, or None}."""
+        compiling = self._compiling.is_alive()  # first: once it is over, the count below is final
+        error = self._compile_error
+        return {"devices": sum(programs is not None for programs in self._compiled),
+                "local_devices": self.num_devices, "compiling": compiling,
+                "compile_error": None if error is None else f"{type(error).__name__}: {error}"}
 
     def wait_until_compiled(self) -> None:
         """Returns once every device's program is compiled (raises if one failed)."""
-        self._compiling.join()
+        self.wait_for_compiles()
         if self._compile_error is not None:
             raise RuntimeError(f"compiling the rollout for another device failed: {self._compile_error}")
 

@@ -8,8 +8,9 @@ node are found dead by pings, not by handing them chunks one after another.
 The pool keeps asking Ray for ``max_workers`` actors, so replacements and
 actors on newly joined nodes start as soon as the cluster has room (which is
 also the demand an autoscaler sees). Only workers that finished compiling get
-chunks. Every wait has a timeout, and looks at the driver's stop request at
-least every ``POLL_S``.
+chunks, and a worker with several devices gets as many calls at once as it has
+devices compiled. Every wait has a timeout, and looks at the driver's stop
+request at least every ``POLL_S``.
 
 A cluster may have no live worker for a while (at start-up, or when it loses
 every node at once and an autoscaler replaces them): the pool waits for one up
@@ -61,6 +62,7 @@ class _Worker:
     first_result_s: float | None = None  # actor creation to its first chunk result
     ping_ref: Any = None  # a liveness check in flight (a node-mate died): no chunk until it answers
     ping_deadline: float = 0.0
+    compile_ref: Any = None  # answers once the worker's other devices' compiles are over (``RolloutWorker.compiled``)
 
 
 def serialized_bytes(obj) -> int:
@@ -76,7 +78,7 @@ def serialized_bytes(obj) -> int:
     return len(header) + sum(buffer.raw().nbytes for buffer in buffers)
 
 
-def last_line(error: BaseException) -> str:
+def last_line(error: BaseException | str) -> str:
     """The last non-blank line of an error's text: Ray's errors from an actor carry its whole traceback, whose
     last line is the exception itself."""
     lines = [line.strip() for line in str(error).splitlines() if line.strip()]
@@ -275,6 +277,28 @@ class WorkerPool:
         worker.ready = True
         self._startup_deaths.clear()
         self._wait.live()
+        if worker.info.get("compiling"):  # its other devices are still compiling: hear when they are done
+            worker.compile_ref = worker.actor.compiled.remote()
+
+    def _compiled(self, worker: _Worker) -> None:
+        """A worker's other devices finished compiling, or failed to: it runs as many calls at once as compiled."""
+        import ray
+        from ray.exceptions import GetTimeoutError, RayError
+
+        try:
+            report = ray.get(worker.compile_ref, timeout=POLL_S)
+        except GetTimeoutError:
+            return
+        except RayError:
+            worker.compile_ref = None
+            self.lose(worker)  # it died
+            return
+        worker.compile_ref = None
+        worker.info.update(report)
+        if report.get("compile_error"):
+            _log.warning("pizero: warning: a worker on node %s compiled its rollout for %d of its %d devices and "
+                         "runs on those (%s)", str(worker.info.get("node_id", "?"))[:12], report["devices"],
+                         report["local_devices"], last_line(report["compile_error"]))
 
     def _expire_stale(self, now: float) -> None:
         """A worker still on a chunk dropped by min_fraction past its deadline is hung: kill it (top_up replaces it)."""
@@ -372,16 +396,19 @@ class WorkerPool:
         return queue.result()
 
     def _handle_answers(self, queue: _ChunkQueue) -> None:
-        """Waits up to POLL_S for the calls the pool is waiting on (chunks, starts, pings, stragglers), and takes
-        each that is done."""
+        """Waits up to POLL_S for the calls the pool is waiting on (chunks, starts, pings, compiles, stragglers),
+        and takes each that is done."""
         starting = {w.ready_ref: w for w in self._workers if not w.ready}
         pinged = {w.ping_ref: w for w in self._workers if w.ping_ref is not None}
-        waitable = list(queue.in_flight) + list(starting) + list(pinged) + list(self._stale)
+        compiling = {w.compile_ref: w for w in self._workers if w.compile_ref is not None}
+        waitable = list(queue.in_flight) + list(starting) + list(pinged) + list(compiling) + list(self._stale)
         for ref in _all_ready(waitable):
             if ref in starting:
                 self._started(starting[ref], ref)
             elif ref in pinged:
                 self._pinged(pinged[ref])
+            elif ref in compiling:
+                self._compiled(compiling[ref])
             elif ref in self._stale:
                 self._stale.pop(ref)[0].in_flight -= 1
             else:

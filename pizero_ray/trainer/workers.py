@@ -7,7 +7,10 @@ driver's per-chunk timeout need not allow for compiles.
 
 A CPU worker with N CPUs runs N JAX CPU devices and scores up to N chunks
 at once, one per device (``local_devices``); a GPU worker uses the GPUs Ray
-gave it the same way.
+gave it the same way. Its first device compiles before it is ready, the others
+after: ``ready`` says how many devices have compiled so far, and ``compiled``
+answers once the others have compiled or failed to, with the devices it runs
+on then.
 """
 
 from __future__ import annotations
@@ -43,13 +46,20 @@ class RolloutWorker:
             "pid": os.getpid(),
             "node_id": ray.get_runtime_context().get_node_id(),
             "device": str(self._chunks.devices[0]),
-            "devices": self._chunks.num_devices,
             "pinned_cores": list(self._cores.cores),
             "startup_s": time.time() - started,
         }
 
     def ready(self) -> dict:
-        return self._info
+        """Where this worker runs, and ``ChunkScorer.compile_report``: the devices compiled so far ("devices"),
+        and whether others still compile ("compiling")."""
+        return {**self._info, **self._chunks.compile_report()}
+
+    def compiled(self) -> dict:
+        """``ready`` once every device's compile is over: "devices" is how many calls the worker runs at once,
+        "compile_error" the error of a device that failed to compile, or None."""
+        self._chunks.wait_for_compiles()
+        return self.ready()
 
     def peak_rss_mb(self) -> float:
         """This worker process's peak resident memory (for `pizero bench`)."""
@@ -91,7 +101,8 @@ def start_worker(
     """
     devices = worker_devices(num_cpus, num_gpus)
     actor = ray.remote(RolloutWorker).options(
-        num_cpus=num_cpus, num_gpus=num_gpus, resources=resources or {}, max_concurrency=devices,  # a chunk per device
+        # A call per device, and one for ``compiled``, which waits for the compiles without holding a device's.
+        num_cpus=num_cpus, num_gpus=num_gpus, resources=resources or {}, max_concurrency=devices + 1,
         runtime_env=_gpu_env(num_gpus))
     if num_gpus > 0:
         return actor.remote(config_json, compile_cache_dir, keep_noise=keep_noise)

@@ -189,7 +189,7 @@ def test_a_worker_with_two_cpus_runs_two_devices(ray_session, compile_cache_dir,
     actor = workers.start_worker(CONFIG.to_json(), 2.0, 0.0, compile_cache_dir)
     try:
         info = ray_session.get(actor.ready.remote(), timeout=300)
-        assert info["devices"] == 2
+        assert ray_session.get(actor.compiled.remote(), timeout=300)["devices"] == 2  # both, once compiled
         if local_devices.cpu_count() == 2:
             assert info["pinned_cores"] == []  # both cores: nothing to pin
         refs = [actor.score_chunk.remote(theta, SEED, first) for first in FIRST_PAIRS]

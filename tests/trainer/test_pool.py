@@ -583,6 +583,61 @@ def test_a_node_lost_while_its_workers_start_does_not_stop_the_run(
     assert [row["workers"] for row in rows] == [1] * ITERATIONS
 
 
+def test_a_worker_whose_second_device_fails_to_compile_is_handed_chunks_for_one(
+        ray_session, compile_cache_dir, caplog):
+    """A 2-device worker compiles its first device's programs, then fails on the second's (as a GPU out of
+    memory would). It reports the device that compiled, and the pool sizes its calls by that, and says why."""
+    import time
+
+    import numpy as np
+
+    import envs
+    from pizero_ray.es import population
+    from pizero_ray.trainer import workers
+    from pizero_ray.trainer.options import PoolOptions
+    from pizero_ray.trainer.pool import WorkerPool
+
+    class SecondDeviceFailsToCompile(workers.RolloutWorker):  # defined here: Ray pickles it by value
+        def __init__(self, *args, **kwargs):
+            from pizero_ray.es import population
+            make_pair_scorer = population.make_pair_scorer
+
+            class FirstDeviceOnly:
+                def __init__(self, scorer):
+                    self._scorer = scorer
+
+                def lower(self, theta, *rest):
+                    import jax
+                    if theta.sharding.device_set != {jax.local_devices()[0]}:
+                        raise RuntimeError("RESOURCE_EXHAUSTED: out of memory compiling for the second device")
+                    return self._scorer.lower(theta, *rest)
+
+            population.make_pair_scorer = lambda *a, **k: FirstDeviceOnly(make_pair_scorer(*a, **k))
+            super().__init__(*args, **kwargs)
+
+    def start(config_json, num_cpus, num_gpus, cache_dir, resources, pin_cores, keep_noise):
+        return ray_session.remote(SecondDeviceFailsToCompile).options(num_cpus=0, max_concurrency=3).remote(
+            config_json, cache_dir, 2, False, cpu_only=True, keep_noise=keep_noise)
+
+    theta = population.flat_params(CONFIG, envs.make(CONFIG.env))[0]
+    pool = WorkerPool(CONFIG, PoolOptions(workers=1, cpus_per_worker=2, compile_cache=compile_cache_dir),
+                      workers.WorkerFactory(start, workers.stop_worker))
+    try:
+        theta_ref = ray_session.put(np.asarray(theta))
+        deadline = time.time() + 300
+        while time.time() < deadline:  # until the worker is ready and every compile it tried is over
+            result = pool.score_population(theta_ref, 1)
+            (worker,) = pool._workers
+            if worker.ready and not worker.info.get("compiling"):
+                break
+        assert result.valid.all()
+        assert worker.info["devices"] == 1
+    finally:
+        pool.shutdown()
+    (said,) = _warnings(caplog, "RESOURCE_EXHAUSTED")
+    assert "\n" not in said and "1 of its 2 devices" in said
+
+
 def test_a_worker_that_misses_the_gradient_part_deadline_is_killed_as_hung(ray_session, monkeypatch):
     import numpy as np
 
