@@ -145,4 +145,51 @@ def check_environment(env: Any, source: str | None = None) -> Environment:
         raise _problem(source, f"step's done must be a bool scalar (shape ()), got {_described(done)}")
     if env.reseed is not None:
         _same_state(state, _traced(env.reseed, (state, key), source, "reseed"), source, "reseed")
+    _check_batched(env, action, source)
+    if spec.discrete:
+        _check_legal_actions(env, source)
     return env
+
+
+BATCH = 2  # episodes side by side in the vmap check
+
+
+def _check_batched(env: Environment, action: Any, source: str) -> None:
+    """reset and step under ``jax.vmap``, as the workers play a batch of episodes: traced, not run."""
+    keys = jax.ShapeDtypeStruct((BATCH, 2), jnp.uint32)
+    states, _ = _traced(jax.vmap(env.reset), (keys,), source, "reset under jax.vmap")
+    actions = jax.ShapeDtypeStruct((BATCH, *action.shape), action.dtype)
+    _traced(jax.vmap(env.step), (states, actions), source, "step under jax.vmap")
+
+
+LEGAL_ACTION_STEPS = 4  # steps of one episode whose masks are checked: the check plays, so it stays short
+
+
+def _check_legal_actions(env: Environment, source: str) -> None:
+    """The first observations of one episode (random legal actions) each leave an action legal: an all-False
+    mask would have the agent take an illegal action silently. Plays them: one small compile each of reset and
+    step."""
+    found = _first_without_legal_action(env, source)
+    if found is not None:
+        raise _problem(source, f"{found}'s observation.action_mask has no legal action: at least one action must "
+                               "always be legal")
+
+
+def _first_without_legal_action(env: Environment, source: str) -> str | None:
+    """"reset" or "step N", the first of one short episode whose mask is all False; None if none is."""
+    from envs.base import random_legal_action
+
+    key = jax.random.PRNGKey(0)
+    try:
+        state, observation = jax.jit(env.reset)(key)
+        step = jax.jit(env.step)
+        for number in range(min(LEGAL_ACTION_STEPS, env.spec.horizon) + 1):
+            if not bool(observation.action_mask.any()):
+                return "reset" if number == 0 else f"step {number}"
+            key, action_key = jax.random.split(key)
+            state, observation, _, done = step(state, random_legal_action(observation.action_mask, action_key))
+            if bool(done):
+                return None
+    except Exception as error:  # noqa: BLE001 -- the user's code: whatever it raises becomes the one line
+        raise _problem(source, f"playing its first steps failed: {_first_line(error)}") from None
+    return None

@@ -75,4 +75,8 @@ def make(path: str, **env_args) -> Environment:
         raise ValueError(f"bad parameters for environment {path!r}: {env_args} ({error})") from None
     except ValueError as error:  # the factory's own check of a parameter (envs.base.require), kept to one line
         raise ValueError(" ".join(str(error).split())) from None
+    except Exception as error:  # noqa: BLE001 -- the user's factory: whatever it raises becomes one line
+        lines = str(error).strip().splitlines()
+        raise ValueError(f"environment {path!r}: the factory raised {type(error).__name__}: "
+                         f"{lines[0] if lines else ''}".rstrip(": ")) from None
     return check_environment(env, path)

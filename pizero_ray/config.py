@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from pizero_ray.presets import METHOD_ENV_PRESETS, METHOD_PRESETS, PRESETS, env_preset
-from pizero_ray.settings import lookup, setting
+from pizero_ray.settings import check_finite, lookup, setting
 
 METHODS = ("pizero", "es", "alphazero", "muzero")
 GRADIENT_METHODS = ("alphazero", "muzero")  # trained by gradients on self-play, in one process (no Ray)
@@ -25,6 +25,11 @@ ACTION_SELECTIONS = ("argmax", "sample")
 SIMULATOR_RANDOMNESS = ("sampled", "foreseen")
 EPISODE_LOOPS = ("until_done", "horizon")
 SIMULATION_LOOPS = ("fori", "unrolled")
+
+
+# How the rollout's loops compile, never what it computes (the same scores: tests/es/test_population.py): the
+# only settings a run may change between sessions.
+COMPILE_ONLY_SETTINGS = ("episode_loop", "simulation_loop")
 
 
 class ConfigError(ValueError):
@@ -147,6 +152,7 @@ class Config:
             need(value in allowed, f"unknown {name.replace('_', ' ')} {value!r} (choose from {', '.join(allowed)})")
 
         need_choice("method")
+        check_finite(self, ConfigError)  # --lr inf or --sigma nan would pass every range check below
         self._validate_env()
         for name in ("hidden_size", "latent_size", "memory_size", "num_abstract_actions",
                      "population", "episodes_per_member", "chunk_size", "chunks_per_launch"):
@@ -269,6 +275,12 @@ class Config:
     @classmethod
     def from_json(cls, text: str) -> "Config":
         return cls.from_dict(json.loads(text))
+
+
+def differing_settings(a: Config, b: Config, ignore: tuple[str, ...] = COMPILE_ONLY_SETTINGS) -> list[str]:
+    """The names of the settings in which ``a`` and ``b`` differ, in field order, but those in ``ignore``."""
+    return [f.name for f in dataclasses.fields(Config)
+            if f.name not in ignore and getattr(a, f.name) != getattr(b, f.name)]
 
 
 def largest_divisor_at_most(number: int, limit: int) -> int:

@@ -93,13 +93,15 @@ class LoadedRun(NamedTuple):
     agent: object  # pizero_ray.agent.Agent: what plays the run's episodes
 
 
-def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
+def load_run(run_path: Path, env_args: dict | None = None, trust_env: bool | str = False) -> LoadedRun:
     """A run dir's newest good checkpoint (or its initial parameters), with its environment.
 
     ``env_args`` override the run's environment parameters (evaluate on other
-    levels, say); they may not change the agent's shape.
+    levels, say); they may not change the agent's shape. ``trust_env``: an
+    environment recorded by import path is imported only if trusted
+    (``run_dir.read_trusted_config``): True, or that import path.
     """
-    config = rundir.read_config(run_path)
+    config = rundir.read_trusted_config(run_path, trust_env)
     trained_env = make_env(config)
     state, layout, learner = initial_state(config, trained_env)
     theta = np.asarray(state.theta)
@@ -107,20 +109,25 @@ def load_run(run_path: Path, env_args: dict | None = None) -> LoadedRun:
     agent = acting_agent(config, env, learner if env is trained_env else None)
     restored = checkpoints.restore_latest(run_path, theta, state.carried)
     if restored is None:
+        held = checkpoints.held_progress(run_path)
+        if held:  # its trained parameters are gone: the untrained agent would stand in for them
+            raise checkpoints.CheckpointError(f"run dir {run_path} holds {' and '.join(held)} but no checkpoint: "
+                                              "its trained parameters cannot be loaded")
         return LoadedRun(config, 0, theta, env, layout, agent)
     return LoadedRun(config, restored.iteration, restored.theta, env, layout, agent)
 
 
-def warm_start(state, layout: FlatParams, source: Path):
+def warm_start(state, layout: FlatParams, source: Path, trust_env: bool | str = False):
     """``state`` (a fresh run's) with its parameters replaced by run dir ``source``'s newest (``--init-from``).
 
     The optimiser state and iteration stay fresh. Raises ConfigError, one line, if ``source`` is not a run dir
-    or its parameters do not fit ``layout``.
+    or its parameters do not fit ``layout``. ``trust_env`` as for ``load_run``: the new run's own environment,
+    which the user named, is the one import path worth trusting.
     """
     import jax
     import jax.numpy as jnp
 
-    loaded = load_run(source)
+    loaded = load_run(source, trust_env=trust_env)
     shapes = jax.tree.map(np.shape, layout.unravel(jnp.asarray(state.theta)))
     if jax.tree.map(np.shape, loaded.layout.unravel(loaded.theta)) != shapes:  # the same shapes: the same size
         raise ConfigError(f"--init-from {source}: its agent ({loaded.config.method} on {loaded.config.env}, "

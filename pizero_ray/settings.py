@@ -9,6 +9,7 @@ holds docs/options.md to it. Pure Python: no JAX, no Ray.
 from __future__ import annotations
 
 import dataclasses
+import math
 import typing
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -73,8 +74,19 @@ def lookup(cls: type, name: str) -> Setting:
 
 
 def check_minimums(instance: Any, error: type[Exception]) -> None:
-    """Raises ``error`` naming the first declared setting of ``instance`` that is below its minimum."""
+    """Raises ``error`` naming the first declared setting of ``instance`` that is below its minimum, or the
+    first number that is not finite (NaN and infinity pass every comparison check, or fail none)."""
+    check_finite(instance, error)
     for s in declared(type(instance)):
         value = getattr(instance, s.name, None)
         if s.minimum is not None and value is not None and value < s.minimum:
             raise error(f"{s.flag or s.name} must be at least {s.minimum}, got {value!r}")
+
+
+def check_finite(instance: Any, error: type[Exception]) -> None:
+    """Raises ``error`` naming the first float field of a dataclass ``instance`` that is NaN or infinite."""
+    for field in dataclasses.fields(instance):
+        value = getattr(instance, field.name)
+        if isinstance(value, float) and not math.isfinite(value):
+            flag = field.metadata.get(_KEY, {}).get("flag")
+            raise error(f"{flag or field.name} must be a finite number, got {value!r}")

@@ -229,7 +229,7 @@ def test_every_option_of_train_is_a_declared_setting_or_the_commands_own():
     (sub,) = [a for a in commands.build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
     train = {a.dest: a for a in sub.choices["train"]._actions}
     settings = [s for cls in (Config, RunOptions) for s in declared(cls) if s.flag]
-    assert {s.name for s in settings} | {"help", "run_dir", "preset", "no_progress"} == set(train)
+    assert {s.name for s in settings} | {"help", "run_dir", "preset", "no_progress", "verbose"} == set(train)
     for s in settings:
         assert train[s.name].option_strings == [s.flag] and train[s.name].default is None  # presets apply
     run_fields = {f.name for f in dataclasses.fields(RunOptions)}
@@ -274,15 +274,15 @@ def test_a_resume_keeps_the_stored_learning_curve_schedule_unless_an_option_is_g
     args = _parse(["train", "--run-dir", "unused", "--eval-every", "25", "--eval-episodes", "64",
                    "--eval-env-arg", "levels=valid"])
     trained = training.run_options(args, 100)
-    run_dir.write_evaluation_schedule(tmp_path, trained.evaluation_schedule())
-    kept = run_dir.read_evaluation_schedule(tmp_path)
+    run_dir.write_schedule(tmp_path, trained.schedule())
+    kept = run_dir.read_schedule(tmp_path)
     assert kept == {"eval_every": 25, "eval_every_minutes": None, "eval_episodes": 64,
-                    "eval_env_args": [["levels", "valid"]]}
+                    "eval_env_args": [["levels", "valid"]], "checkpoint_every": 25, "keep_checkpoints": 3}
     resumed = training.run_options(_parse(["resume", "unused", "--minutes", "30"]), None, kept)
     assert [getattr(resumed, name) for name in kept] == [getattr(trained, name) for name in kept]
     args = _parse(["resume", "unused", "--minutes", "30", "--eval-every", "0"])
     assert training.run_options(args, None, kept).eval_every == 0  # a given option wins
-    assert run_dir.read_evaluation_schedule(tmp_path / "older") == {}  # run dirs from before: today's defaults
+    assert run_dir.read_schedule(tmp_path / "older") == {}  # run dirs from before: today's defaults
 
 
 @pytest.mark.parametrize("values, message", [

@@ -45,12 +45,12 @@ def test_the_example_trains_by_import_path_on_a_real_worker(trained):
 def test_the_trained_example_evaluates_and_renders(trained, tmp_path, capsys):
     run, finished = trained
     assert finished.returncode == 0, finished.stderr[-3000:]
-    assert main(["eval", str(run), "--episodes", "8", "--json"]) == 0
+    assert main(["eval", str(run), "--episodes", "8", "--json", "--env", EXAMPLE]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["env"] == EXAMPLE and result["iteration"] == 2
     assert 0.0 <= result["mean_arrived"] <= 1.0  # the example's episode_metrics hook
     out = tmp_path / "corridor.png"
-    assert main(["render", str(run), "--out", str(out)]) == 0
+    assert main(["render", str(run), "--out", str(out), "--trust-env"]) == 0
     frame = np.asarray(Image.open(out).convert("RGB"))
     assert frame.shape[1] == 480  # 5 cells of 16 pixels, made legible (x6)
     assert (frame == corridor.AGENT).all(-1).any() and (frame == corridor.GOAL).all(-1).any()  # drawn by render
@@ -100,6 +100,6 @@ def test_an_environment_that_breaks_the_protocol_is_one_line_before_anything_tra
 
 def test_eval_of_a_run_whose_environment_is_not_importable_here_is_one_line(tmp_path, capsys):
     run_dir.write_config(tmp_path, build_config("tiny", env="moved_away_module:make"))
-    assert main(["eval", str(tmp_path)]) == 2
+    assert main(["eval", str(tmp_path), "--trust-env"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "environment 'moved_away_module:make': no module named 'moved_away_module'" in err[0]

@@ -117,8 +117,34 @@ def given(cls: type, args) -> dict:
     return values
 
 
-def existing_run(path_text: str) -> Path:
-    """The run dir named, resolved; one that holds no run is a one-line error naming the path."""
+def existing_run(path_text: str, trust_env: bool | str | None = None) -> Path:
+    """The run dir named, resolved; one that holds no run is a one-line error naming the path.
+
+    ``trust_env`` (``env_trust(args)``), for a command that builds the run's
+    environment: a run dir naming an import path the user has not trusted is
+    refused here, before anything runs; None for one that never builds it.
+    """
     path = rundir.resolve(path_text)
-    rundir.read_config(path)  # raises a one-line error naming the path
+    if trust_env is None:
+        rundir.read_config(path)  # raises a one-line error naming the path
+        return path
+    config = rundir.read_config(path)
+    if isinstance(trust_env, str) and trust_env != config.env:
+        raise UsageError(f"--env {trust_env} is not the environment of run dir {path} ({config.env})")
+    rundir.read_trusted_config(path, trust_env)
     return path
+
+
+def add_env_trust_options(parser: argparse.ArgumentParser) -> None:
+    """--env and --trust-env: how a user trusts the environment a run dir names by import path."""
+    parser.add_argument("--env", dest="trusted_env", metavar="MODULE:FACTORY",
+                        help="the run's environment, named again: a run dir that names its environment by import "
+                             "path is imported only if you name it here or add --trust-env (docs/running.md, "
+                             "Threat model)")
+    parser.add_argument("--trust-env", action="store_true",
+                        help="import whatever environment the run dir names (its module's code runs)")
+
+
+def env_trust(args) -> bool | str:
+    """What ``add_env_trust_options`` gave: True (--trust-env), the import path named (--env), or False."""
+    return True if getattr(args, "trust_env", False) else (getattr(args, "trusted_env", None) or False)

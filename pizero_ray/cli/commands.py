@@ -15,7 +15,7 @@ from pizero_ray.cli import compare, experiments, reports, training
 from pizero_ray.cli.arguments import UsageError
 from pizero_ray.config import ConfigError
 from pizero_ray.storage.checkpoints import CheckpointError
-from pizero_ray.storage.writer_lock import RunDirInUse
+from pizero_ray.storage.writer_lock import RunDirInUse, RunDirUnwritable
 
 
 class Command(NamedTuple):
@@ -39,12 +39,29 @@ COMMANDS = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a usage error in one line that says where the usage is, instead of the whole usage first:
+    the line that matters is the one a user sees."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="pizero", description="PiZero trained by OpenAI-ES on Ray")
+    parser = _Parser(prog="pizero", description="PiZero trained by OpenAI-ES on Ray")
     sub = parser.add_subparsers(dest="command", required=True)
     for command in COMMANDS.values():
         command.add_parser(sub)
+    for command_parser in sub.choices.values():
+        command_parser.add_argument("--verbose", action="store_true",
+                                    help="on an unexpected error, show its whole traceback, not one line")
     return parser
+
+
+def _unexpected(error: BaseException) -> str:
+    """One line for an error no check foresaw: its type and its message's first line."""
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    return f"{type(error).__name__}: {lines[0]}" if lines else type(error).__name__
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -55,9 +72,14 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return COMMANDS[args.command].run(args)
-    except (ConfigError, UsageError, CheckpointError, RunDirInUse) as error:
+    except (ConfigError, UsageError, CheckpointError, RunDirInUse, RunDirUnwritable) as error:
         print(f"pizero: error: {error}", file=sys.stderr)
         return 2
+    except Exception as error:  # noqa: BLE001 -- the promise is one line; --verbose shows the rest
+        if args.verbose:
+            raise
+        print(f"pizero: error: {_unexpected(error)} (run again with --verbose for the traceback)", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -14,7 +14,14 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pizero_ray.cli.arguments import UsageError, existing_run, int_at_least, non_negative_int
+from pizero_ray.cli.arguments import (
+    UsageError,
+    add_env_trust_options,
+    env_trust,
+    existing_run,
+    int_at_least,
+    non_negative_int,
+)
 
 if TYPE_CHECKING:
     from pizero_ray.config import Config
@@ -32,6 +39,7 @@ def add_compare_parser(sub) -> None:
     compare.add_argument("--seed", type=non_negative_int, default=0,
                          help="seed of the episodes, as pizero eval's, and of the bootstrap (default 0)")
     compare.add_argument("--json", action="store_true", help="print one JSON object")
+    add_env_trust_options(compare)
 
 
 def environment(config: Config) -> str:
@@ -59,13 +67,14 @@ def check_same_episodes(run_a: LoadedRun, run_b: LoadedRun, paths: tuple[Path, P
                          "play different episodes: compare runs on the same environment")
 
 
-def compare_runs(path_a: Path, path_b: Path, episodes: int, seed: int) -> dict:
-    """Both runs' unperturbed agents on the episodes of ``seed``, and their paired comparison."""
+def compare_runs(path_a: Path, path_b: Path, episodes: int, seed: int, trust_env: bool | str = False) -> dict:
+    """Both runs' unperturbed agents on the episodes of ``seed``, and their paired comparison; ``trust_env`` as
+    for ``methods.load_run``, for both."""
     from pizero_ray import methods
     from pizero_ray.cli.evaluate import episode_scores
     from pizero_ray.evaluation.paired import compare_scores
 
-    run_a, run_b = methods.load_run(path_a), methods.load_run(path_b)
+    run_a, run_b = (methods.load_run(path, trust_env=trust_env) for path in (path_a, path_b))
     check_same_episodes(run_a, run_b, (path_a, path_b), episodes, seed)
     result = {}
     for name, path, run in (("a", path_a, run_a), ("b", path_b, run_b)):
@@ -101,7 +110,8 @@ def text_report(result: dict) -> str:
 
 
 def cmd_compare(args) -> int:
-    path_a, path_b = existing_run(args.run_a), existing_run(args.run_b)
-    result = compare_runs(path_a, path_b, args.episodes, args.seed)
+    trust = env_trust(args)
+    path_a, path_b = existing_run(args.run_a, trust), existing_run(args.run_b, trust)
+    result = compare_runs(path_a, path_b, args.episodes, args.seed, trust)
     print(json.dumps(result) if args.json else text_report(result))
     return 0

@@ -36,14 +36,15 @@ def episode_scores(run: LoadedRun, episodes: int, seed: int) -> tuple[np.ndarray
 
 
 def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
-                 zero_memory: bool = False) -> dict:
+                 zero_memory: bool = False, trust_env: bool | str = False) -> dict:
     """The unperturbed agent on fresh episodes; ``env_args`` override the run's (e.g. other levels);
-    ``zero_memory`` holds the agent's memory at its initial zeros (``agent.without_memory``)."""
-    return evaluate_run_scores(run_path, episodes, seed, env_args, zero_memory)[0]
+    ``zero_memory`` holds the agent's memory at its initial zeros (``agent.without_memory``); ``trust_env``
+    as for ``methods.load_run``."""
+    return evaluate_run_scores(run_path, episodes, seed, env_args, zero_memory, trust_env)[0]
 
 
 def evaluate_run_scores(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
-                        zero_memory: bool = False) -> tuple[dict, np.ndarray]:
+                        zero_memory: bool = False, trust_env: bool | str = False) -> tuple[dict, np.ndarray]:
     """``evaluate_run``'s report, and the scores it summarises in episode order (``episode_scores``)."""
     import jax
 
@@ -51,7 +52,7 @@ def evaluate_run_scores(run_path: Path, episodes: int, seed: int, env_args: dict
     from pizero_ray.agent import episodes as play
     from pizero_ray.agent import without_memory
 
-    run = methods.load_run(run_path, env_args)
+    run = methods.load_run(run_path, env_args, trust_env)
     config, iteration, env = run.config, run.iteration, run.env
     if zero_memory:
         run = run._replace(agent=without_memory(run.agent))

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from pizero_ray.cli.arguments import add_settings, comma_list, env_arg, given, positive_int
+from pizero_ray.cli.arguments import UsageError, add_settings, comma_list, env_arg, given, positive_int
 from pizero_ray.config import Config
 from pizero_ray.presets import PRESETS
 from pizero_ray.storage import run_dir as rundir
@@ -60,6 +60,8 @@ def add_plot_experiment_parser(sub) -> None:
     report.add_argument("experiment_dirs", nargs="+", metavar="EXPERIMENT_DIR",
                         help="an experiment's --out; several: sittings of one experiment over other environments")
     report.add_argument("--out", required=True, help="directory for results.png, results_table.md, results.json")
+    report.add_argument("--trust-env", action="store_true",
+                        help="import the environments the experiment names by import path (their code runs)")
 
 
 def _scoped(pairs) -> tuple:
@@ -92,10 +94,22 @@ def cmd_experiment(args) -> int:
     return 0
 
 
+def _refuse_untrusted_envs(sittings, trust_env: bool) -> None:
+    """An experiment dir is data: the environments it names by import path are imported only with --trust-env."""
+    import envs
+
+    for out, spec in sittings:
+        named = [env for env in spec.envs if envs.is_import_path(env)]
+        if named and not trust_env:
+            raise UsageError(f"experiment {out} names environments by import path ({', '.join(named)}), which "
+                             "would import and run that code; if you trust it, add --trust-env")
+
+
 def cmd_plot_experiment(args) -> int:
     from pizero_ray.experiment import grid, report
 
     sittings = [(out, grid.read_spec(out)) for out in map(rundir.resolve, args.experiment_dirs)]
+    _refuse_untrusted_envs(sittings, args.trust_env)
     summary = report.write_report(sittings, Path(args.out))
     shown = report.state_runs(sittings)
     if shown:
@@ -106,6 +120,6 @@ def cmd_plot_experiment(args) -> int:
         title = (f"Seed 0's {' / '.join(methods)} after {sittings[0][1].budget_minutes:g} training minutes: "
                  "one evaluation episode each")
         states_figure(shown, Path(args.out) / "states.png", env_args=eval_env_args,  # Sokoban on its valid levels
-                      title=title)
+                      title=title, trust_env=args.trust_env)
     print(json.dumps({"out": args.out, "results": len(summary["results"]), "states": sorted(shown)}))
     return 0

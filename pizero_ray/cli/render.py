@@ -56,14 +56,16 @@ def episode_shots(trajectory: Trajectory, e: int) -> list[Shot]:
     return shots
 
 
-def play(run_path: Path, episodes: int, seed: int, env_args: dict | None = None) -> Played:
-    """``episodes`` episodes played by the run's unperturbed agent (its newest checkpoint), every step kept."""
+def play(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
+         trust_env: bool | str = False) -> Played:
+    """``episodes`` episodes played by the run's unperturbed agent (its newest checkpoint), every step kept;
+    ``trust_env`` as for ``methods.load_run``."""
     import jax
 
     from pizero_ray import methods
     from pizero_ray.agent import episodes as play_episodes
 
-    config, _, theta, env, layout, agent = methods.load_run(run_path, env_args)
+    config, _, theta, env, layout, agent = methods.load_run(run_path, env_args, trust_env)
     if env.render is None:
         raise ConfigError(f"environment {config.env!r} has no renderer")
     record = jax.jit(lambda th, key: play_episodes.record_episodes(agent, layout.unravel(th), env, key, episodes))
@@ -76,9 +78,10 @@ def shot_caption(env: Environment, shot: Shot) -> list[str]:
     return caption.caption_lines(env.name, shot.state, shot.step, env.spec.horizon, shot.score, shot.final)
 
 
-def episode_frames(run_path: Path, episodes: int, seed: int, env_args: dict | None = None) -> list[np.ndarray]:
+def episode_frames(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
+                   trust_env: bool | str = False) -> list[np.ndarray]:
     """Frames of ``episodes`` episodes played by the unperturbed agent, each up to its end, legible and captioned."""
-    played = play(run_path, episodes, seed, env_args)
+    played = play(run_path, episodes, seed, env_args, trust_env)
     env = played.env
     return [caption.annotate(env.render(shot.state), shot_caption(env, shot))
             for episode in played.episodes for shot in episode]

@@ -14,7 +14,9 @@ from pathlib import Path
 
 from pizero_ray.cli.arguments import (
     UsageError,
+    add_env_trust_options,
     env_arg,
+    env_trust,
     existing_run,
     non_negative_int,
     positive_int,
@@ -48,6 +50,7 @@ def add_eval_parser(sub) -> None:
                                "order. Episode i of --seed S starts from the instance that key i of "
                                "split(fold_in(PRNGKey(S), 0)) resets: the same for every run on the environment; "
                                "the same --seed and --episodes replay the whole evaluation")
+    add_env_trust_options(evaluate)
 
 
 def add_render_parser(sub) -> None:
@@ -57,12 +60,14 @@ def add_render_parser(sub) -> None:
     render.add_argument("--seed", type=non_negative_int, default=0, help="seed of the episodes (default 0)")
     render.add_argument("--out", required=True, help="FILE.gif (whole episodes) or FILE.png (final frame)")
     _add_env_arg_option(render)
+    add_env_trust_options(render)
 
 
 def add_inspect_parser(sub) -> None:
     inspect = sub.add_parser("inspect", help="iteration and parameter hash of a run")
     inspect.add_argument("run_dir")
     _add_json_option(inspect)
+    add_env_trust_options(inspect)
 
 
 def add_bench_parser(sub) -> None:
@@ -104,8 +109,9 @@ def cmd_eval(args) -> int:
     from pizero_ray.cli.evaluate import evaluate_run_scores
 
     per_episode_path = per_episode.checked_path(args.per_episode) if args.per_episode else None
-    result, scores = evaluate_run_scores(existing_run(args.run_dir), args.episodes, args.seed, dict(args.env_arg),
-                                         zero_memory=args.zero_memory)
+    trust = env_trust(args)
+    result, scores = evaluate_run_scores(existing_run(args.run_dir, trust), args.episodes, args.seed,
+                                         dict(args.env_arg), zero_memory=args.zero_memory, trust_env=trust)
     if per_episode_path is not None:
         result["per_episode"] = str(per_episode.write(per_episode_path, scores, args.seed))
     _print_report(result, args.json, key_width=30)
@@ -116,8 +122,9 @@ def cmd_inspect(args) -> int:
     from pizero_ray import methods
     from pizero_ray.storage import checkpoints, runs
 
-    run_path = existing_run(args.run_dir)
-    config, iteration, theta, _, _, _ = methods.load_run(run_path)
+    trust = env_trust(args)
+    run_path = existing_run(args.run_dir, trust)
+    config, iteration, theta, _, _, _ = methods.load_run(run_path, trust_env=trust)
     result = {
         "run_dir": str(run_path),
         "env": config.env,
@@ -138,7 +145,9 @@ def cmd_render(args) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".png", ".gif"):
         raise UsageError(f"--out must end in .png or .gif, got {args.out}")
-    frames = render.episode_frames(existing_run(args.run_dir), args.episodes, args.seed, dict(args.env_arg))
+    trust = env_trust(args)
+    frames = render.episode_frames(existing_run(args.run_dir, trust), args.episodes, args.seed, dict(args.env_arg),
+                                   trust_env=trust)
     print(render.write(frames, out))
     return 0
 

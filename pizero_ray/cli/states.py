@@ -31,7 +31,8 @@ def grid_shape(count: int) -> tuple[int, int]:
     return math.ceil(count / columns), columns
 
 
-def final_state_panel(env_name: str, run_path: Path, seed: int, env_args: dict | None = None) -> Panel:
+def final_state_panel(env_name: str, run_path: Path, seed: int, env_args: dict | None = None,
+                      trust_env: bool | str = False) -> Panel:
     """One evaluation episode of the run's agent (as ``pizero render`` plays it), drawn at its end.
 
     ``env_args``: parameters of the environment it is played on, over the run's (Sokoban: valid levels).
@@ -39,7 +40,7 @@ def final_state_panel(env_name: str, run_path: Path, seed: int, env_args: dict |
     config = rundir.read_config(run_path)  # a one-line error naming a path that is no run dir
     if config.env != env_name:
         raise ConfigError(f"run dir {run_path} is a {config.env!r} run, not {env_name!r}")
-    played = render.play(run_path, episodes=1, seed=seed, env_args=env_args)
+    played = render.play(run_path, episodes=1, seed=seed, env_args=env_args, trust_env=trust_env)
     last = played.episodes[0][-1]
     notes = [f"score {caption.format_score(last.score)}", *caption.measures(env_name, last.state, last.final)]
     return Panel(caption.title(env_name), played.env.render(last.state), notes)
@@ -78,14 +79,17 @@ def draw_panels(panels: list[Panel], out: Path, title: str | None = None) -> Pat
 
 
 def states_figure(run_paths: dict[str, Path], out: Path, seed: int = 0,
-                  env_args: dict[str, dict] | None = None, title: str | None = None) -> Path:
+                  env_args: dict[str, dict] | None = None, title: str | None = None,
+                  trust_env: bool = False) -> Path:
     """Up to six environments (env name -> run dir): each run's final state of one episode, in a grid PNG.
 
-    ``env_args``: env name -> the parameters to play it with, over the run's own; ``title``: above the grid.
+    ``env_args``: env name -> the parameters to play it with, over the run's own; ``title``: above the grid;
+    ``trust_env``: import the environments run dirs name by import path (``methods.load_run``).
     """
     out = Path(out)
     if out.suffix.lower() != ".png":
         raise ConfigError(f"the states figure is a .png, got {out}")
     grid_shape(len(run_paths))  # the count is checked before any episode is played
-    panels = [final_state_panel(name, Path(path), seed, (env_args or {}).get(name)) for name, path in run_paths.items()]
+    panels = [final_state_panel(name, Path(path), seed, (env_args or {}).get(name), trust_env)
+              for name, path in run_paths.items()]
     return draw_panels(panels, out, title)

@@ -9,9 +9,19 @@ import signal
 import sys
 from pathlib import Path
 
-from pizero_ray.cli.arguments import UsageError, add_settings, existing_run, given, non_negative_int, positive_int
-from pizero_ray.config import Config, build_config
+from pizero_ray.cli.arguments import (
+    UsageError,
+    add_env_trust_options,
+    add_settings,
+    env_trust,
+    existing_run,
+    given,
+    non_negative_int,
+    positive_int,
+)
+from pizero_ray.config import Config, ConfigError, build_config
 from pizero_ray.presets import PRESETS
+from pizero_ray.settings import lookup
 from pizero_ray.storage import run_dir as rundir
 from pizero_ray.storage import writer_lock
 
@@ -52,6 +62,7 @@ def add_chaos_parser(sub) -> None:
 def add_resume_parser(sub) -> None:
     resume = sub.add_parser("resume", help="continue a run from its newest checkpoint")
     resume.add_argument("run_dir")
+    add_env_trust_options(resume)
     resume.add_argument("--restart", action="store_true",
                         help="start again from iteration 0 although the run dir holds progress; what it replaces "
                              "is kept (checkpoints in RUN_DIR/replaced/, metrics rows in metrics-dropped.jsonl)")
@@ -61,6 +72,7 @@ def add_resume_parser(sub) -> None:
 def train_config(args) -> Config:
     """The config given (over its preset), its environment parameters and warm start checked."""
     config = build_config(args.preset, **given(Config, args))
+    _note_a_smaller_chunk(args, config)
     import envs
 
     try:
@@ -72,30 +84,71 @@ def train_config(args) -> Config:
 
         config = dataclasses.replace(config, init_from=str(rundir.resolve(config.init_from)))
         state, layout, _ = methods.initial_state(config, methods.make_env(config))
-        methods.warm_start(state, layout, Path(config.init_from))
+        methods.warm_start(state, layout, Path(config.init_from), trust_env=config.env)
     return config
 
 
-def run_options(args, iterations: int | None, kept: dict | None = None):
-    """The run options given, over ``kept`` ones (RunOptions validates them: a bad one is a one-line ConfigError)."""
-    from pizero_ray.trainer.options import RunOptions
+def _note_a_smaller_chunk(args, config: Config) -> None:
+    """Says so when a population that the preset's chunk does not divide made the chunk smaller (a prime
+    population makes chunks of one pair: as many calls as pairs)."""
+    chosen = given(Config, args)
+    if "chunk_size" in chosen or "population" not in chosen:
+        return
+    try:
+        preset_chunk = build_config(args.preset, **{**chosen, "population": None}).chunk_size
+    except ConfigError:  # the other settings need this population: nothing to compare with
+        return
+    if config.chunk_size < preset_chunk:
+        print(f"pizero: note: --population {config.population} is no multiple of the preset's chunk of "
+              f"{preset_chunk} pairs: chunks of {config.chunk_size} pairs, {config.num_chunks} of them "
+              "(--chunk-size sets it)", file=sys.stderr)
+
+
+def run_options(args, iterations: int | None, kept: dict | None = None, config: Config | None = None):
+    """The run options given, over ``kept`` ones (RunOptions validates them: a bad one is a one-line ConfigError);
+    with ``config``, also checked against it (pool options a baseline has no use for)."""
+    from pizero_ray.trainer.options import PoolOptions, RunOptions
 
     # An empty text (--compile-cache '', --address '') means the default, as an absent option does.
     values = {name: value for name, value in given(RunOptions, args).items() if value != ""}
-    return RunOptions.create(**{**(kept or {}), **values, "iterations": iterations})
+    if config is not None and config.gradient_trained:
+        pool = sorted(set(values) & set(given(PoolOptions, args)))
+        if pool:
+            flags = ", ".join(lookup(PoolOptions, name).flag for name in pool)
+            raise UsageError(f"method {config.method} trains in one process, without Ray workers: {flags} would "
+                             "do nothing")
+    options = RunOptions.create(**{**(kept or {}), **values, "iterations": iterations})
+    if config is not None:
+        options.pool.check_against(config)
+    return options
+
+
+def _check_fits(config: Config, options) -> None:
+    """A configuration that cannot fit in this machine's memory is refused before anything is written."""
+    from pizero_ray import footprint, methods
+
+    footprint.check_fits(config, methods.make_env(config), options.eval_episodes)
 
 
 def _run_training(run_path: Path, config: Config, options, no_progress: bool) -> int:
     from pizero_ray.cli.progress import progress_callbacks
+    from pizero_ray.storage.checkpoints import CheckpointSaveError
     from pizero_ray.trainer import driver
 
-    on_start, on_iteration, close = progress_callbacks(options, no_progress)
+    show_start, on_iteration, close = progress_callbacks(options, no_progress)
+
+    def on_start(info: dict) -> None:
+        # The schedule is written once the run has started (its checkpoint restored, its config agreed):
+        # a refused resume leaves the run dir as it found it.
+        rundir.write_schedule(run_path, options.schedule())
+        show_start(info)
+
     try:
         try:
             result = driver.train(run_path, config, options, on_iteration=on_iteration, on_start=on_start)
         finally:
             close()
-    except driver.TrainingError as error:  # one line; the run's last checkpoint stands
+    except (driver.TrainingError, CheckpointSaveError) as error:  # one line; the run's last checkpoint stands
         print(f"pizero: error: {error}", file=sys.stderr)
         return 1
     print(json.dumps({"run_dir": str(run_path), **result}))
@@ -112,37 +165,47 @@ def _run_training(run_path: Path, config: Config, options, no_progress: bool) ->
 
 
 def _refuse_a_run_dir_with_a_run(run_path: Path) -> None:
+    from pizero_ray.storage import checkpoints
+
     if (run_path / rundir.CONFIG_FILE).exists():
         raise UsageError(f"run dir {run_path} already holds a run; continue it with: pizero resume {run_path}")
+    held = checkpoints.held_progress(run_path) if run_path.is_dir() else []
+    if held:  # a run whose config.json is gone: a new config would silently continue its checkpoints
+        raise UsageError(f"run dir {run_path} holds {' and '.join(held)} but no {rundir.CONFIG_FILE}: it is not "
+                         "a new run dir; put its config.json back and resume it, or choose another --run-dir")
 
 
 def cmd_train(args) -> int:
     config = train_config(args)
     run_path = rundir.resolve(args.run_dir)
+    rundir.check_location(run_path)
     _refuse_a_run_dir_with_a_run(run_path)
-    if run_path.exists() and not run_path.is_dir():
-        raise UsageError(f"run dir {run_path} exists and is not a directory")
     # With a wall-clock budget and no iteration target, the budget alone says when to stop.
     iterations = args.iterations or (None if args.minutes else DEFAULT_ITERATIONS)
-    options = run_options(args, iterations)
+    options = run_options(args, iterations, config=config)
+    _check_fits(config, options)
     with writer_lock.hold(run_path):  # one writer per run dir, from its first file on
         _refuse_a_run_dir_with_a_run(run_path)  # again: another `pizero train` may have got there first
         rundir.write_config(run_path, config)  # the last steps before training: all input was valid
-        rundir.write_evaluation_schedule(run_path, options.evaluation_schedule())
+        rundir.write_schedule(run_path, options.schedule())
         return _run_training(run_path, config, options, args.no_progress)
 
 
 def cmd_resume(args) -> int:
-    run_path = existing_run(args.run_dir)
-    config = rundir.read_config(run_path)
+    from pizero_ray.storage import runs
+
+    run_path = existing_run(args.run_dir, env_trust(args))
+    config = rundir.read_trusted_config(run_path, env_trust(args))
     if args.iterations is None and args.minutes is None:
         raise UsageError("resume needs --iterations N (the total number of iterations to reach), "
                          "--minutes M (the run's total wall-clock budget) or both")
-    # The learning curve goes on as the run dir says unless an --eval-* option is given.
-    kept = rundir.read_evaluation_schedule(run_path)
-    options = dataclasses.replace(run_options(args, args.iterations, kept), restart=args.restart)
+    # The schedule goes on as the run dir says unless an --eval-* or --checkpoint-* option is given.
+    kept = rundir.read_schedule(run_path)
+    options = dataclasses.replace(run_options(args, args.iterations, kept, config=config), restart=args.restart)
+    rundir.check_location(run_path)
+    if not args.restart:
+        runs.check_same_config(run_path, config)  # before anything is written (the driver checks it again)
     with writer_lock.hold(run_path):  # refused, before writing anything, while another process trains the run
-        rundir.write_evaluation_schedule(run_path, options.evaluation_schedule())
         return _run_training(run_path, config, options, args.no_progress)
 
 
@@ -158,7 +221,8 @@ def cmd_chaos(args) -> int:
     if args.minutes is not None:
         raise UsageError(f"chaos compares two runs of the same iterations; --minutes {args.minutes:g} would cut "
                          "them at different points")
-    options = run_options(args, args.iterations or 10)
+    options = run_options(args, args.iterations or 10, config=config)
+    _check_fits(config, options)
     report = chaos.compare_runs(
         base, config, options, kills=args.kills, seed=args.chaos_seed,
         on_run=lambda name, path: print(f"pizero chaos: {name} run in {path}", file=sys.stderr, flush=True))

@@ -90,7 +90,7 @@ def train_trial(config: dict) -> None:
     options = RunOptions.create(**experiment.run_options(trial, trial_config.get("compile_cache")))
     if not (path / rundir.CONFIG_FILE).exists():
         rundir.write_config(path, config)
-        rundir.write_evaluation_schedule(path, options.evaluation_schedule())  # a later pizero resume keeps it
+        rundir.write_schedule(path, options.schedule())  # a later pizero resume keeps it
 
     def report(row: dict) -> None:
         if "eval_mean_score" in row:

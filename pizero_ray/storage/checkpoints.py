@@ -46,6 +46,10 @@ class CheckpointError(RuntimeError):
     pass
 
 
+class CheckpointSaveError(CheckpointError):
+    """A checkpoint could not be written (a full disk, a lost mount): training stops; earlier ones stand."""
+
+
 class CorruptCheckpoint(CheckpointError):
     """A checkpoint shown to be damaged: a hash mismatch, or files missing or changed since the save."""
 
@@ -75,12 +79,18 @@ class CheckpointWriter:
         meta = {**meta, "state_hash": state_hash(state["theta"], carried)}
         import orbax.checkpoint as ocp
 
-        self._manager.save(
-            iteration,
-            args=ocp.args.Composite(state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave(meta)),
-        )
-        self._manager.wait_until_finished()
-        write_manifest(Path(self._manager.directory) / str(iteration))
+        try:
+            self._manager.save(
+                iteration,
+                args=ocp.args.Composite(state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave(meta)),
+            )
+            self._manager.wait_until_finished()
+            write_manifest(Path(self._manager.directory) / str(iteration))
+        except Exception as error:  # Orbax and TensorStore raise many kinds (RESOURCE_EXHAUSTED on a full disk)
+            # Orbax never lists an unfinished step; the step dir of a save that failed after it did (at the
+            # manifest) has no manifest and is judged by its files on restore.
+            raise CheckpointSaveError(f"saving the checkpoint of iteration {iteration} to "
+                                      f"{self._manager.directory} failed: {_cause(error)}") from error
 
     def close(self) -> None:
         self._manager.close()
@@ -89,12 +99,34 @@ class CheckpointWriter:
 def checkpoint_steps(run_dir: Path) -> list[int]:
     """Finished checkpoints (Orbax lists only steps whose save completed)."""
     directory = Path(run_dir).absolute() / CHECKPOINT_DIR
+    if directory.exists() and not directory.is_dir():
+        raise CheckpointError(f"{directory} is not a directory: the run's checkpoints cannot be read")
     if not directory.is_dir():
         return []
     manager = _manager(run_dir)
     steps = sorted(manager.all_steps())
     manager.close()
     return steps
+
+
+def newest_meta(run_dir: Path) -> dict | None:
+    """The ``meta`` item (iteration, seed, config, hashes) of the newest checkpoint whose meta reads; None if
+    none does. Reads no arrays: cheap enough to check a run dir before anything is written to it."""
+    import orbax.checkpoint as ocp
+
+    steps = checkpoint_steps(run_dir)
+    if not steps:
+        return None
+    manager = _manager(run_dir)
+    try:
+        for step in reversed(steps):
+            try:
+                return dict(manager.restore(step, args=ocp.args.Composite(meta=ocp.args.JsonRestore()))["meta"])
+            except Exception:  # noqa: BLE001 -- a damaged step: restore_latest reports it; try the one before
+                continue
+    finally:
+        manager.close()
+    return None
 
 
 def state_hash(theta: np.ndarray, carried: Any) -> str:

@@ -14,12 +14,37 @@ from pathlib import Path
 
 import numpy as np
 
-from pizero_ray.config import Config
+from pizero_ray.config import Config, ConfigError, differing_settings
 from pizero_ray.storage import checkpoints
 
 
 def parameter_hash(theta: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(theta, dtype="<f4").tobytes()).hexdigest()
+
+
+def check_same_config(run_path: Path, config: Config) -> None:
+    """Refuses, in one line naming each differing setting, to continue a run under another configuration.
+
+    The newest checkpoint's saved config is the truth: a config.json edited, or
+    replaced, since would otherwise train the run's later iterations under
+    other settings while its checkpoints still name the first. Settings that
+    change only how the rollout compiles (``COMPILE_ONLY_SETTINGS``) may
+    change, as may everything outside the config (budget, evaluation, workers).
+    """
+    meta = checkpoints.newest_meta(run_path)
+    if meta is None or "config" not in meta:
+        return
+    try:
+        saved = Config.from_dict(meta["config"])
+    except (ConfigError, TypeError) as error:
+        raise ConfigError(f"run dir {run_path}: the config saved with checkpoint {meta.get('iteration')} cannot be "
+                          f"read: {error}") from None
+    differing = differing_settings(saved, config)
+    if differing:
+        changes = ", ".join(f"{name} {getattr(saved, name)!r} (now {getattr(config, name)!r})" for name in differing)
+        raise ConfigError(f"run dir {run_path} was trained with {changes} up to its checkpoint of iteration "
+                          f"{meta['iteration']}: a run keeps one configuration; put config.json back as it was, "
+                          "or train a new run (--init-from keeps the parameters)")
 
 
 def restore(run_path: Path, state, **resume_options):

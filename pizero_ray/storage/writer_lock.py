@@ -30,6 +30,10 @@ class RunDirInUse(RuntimeError):
     """Another live process is writing the run dir."""
 
 
+class RunDirUnwritable(RuntimeError):
+    """The run dir cannot be created or written (a file in the way, permissions, a read-only mount, a full disk)."""
+
+
 @contextlib.contextmanager
 def hold(run_dir: Path):
     """This process is the run dir's one writer while inside (re-entrant); raises RunDirInUse if another is."""
@@ -47,8 +51,12 @@ def hold(run_dir: Path):
 
 
 def _acquire(run_dir: Path) -> int:
-    run_dir.mkdir(parents=True, exist_ok=True)
-    fd = os.open(run_dir / LOCK_FILE, os.O_CREAT | os.O_RDWR, 0o644)
+    lock = run_dir / LOCK_FILE
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o644)
+    except OSError as error:
+        raise RunDirUnwritable(f"run dir {run_dir} cannot be written: {error.strerror or error}") from None
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError:
@@ -58,8 +66,14 @@ def _acquire(run_dir: Path) -> int:
                           "wait for it to end or stop it first") from None
     holder = {"pid": os.getpid(), "host": socket.gethostname(), "since": time.strftime("%Y-%m-%d %H:%M:%S"),
               "command": " ".join(sys.argv)[:200]}
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, json.dumps(holder).encode(), 0)
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, json.dumps(holder).encode(), 0)
+    except OSError as error:  # a full disk: no half-named lock left behind (it is ours: we hold the flock)
+        os.close(fd)
+        with contextlib.suppress(OSError):
+            lock.unlink()
+        raise RunDirUnwritable(f"run dir {run_dir} cannot be written: {error.strerror or error}") from None
     return fd
 
 

@@ -72,10 +72,13 @@ class _Run:
         from pizero_ray.agent import episodes
 
         self.config, self.options = config, options
+        if not options.restart:
+            runs.check_same_config(run_path, config)  # a run never mixes two configurations
         env = methods.make_env(config)
         state, self.layout, self.method = methods.initial_state(config, env)  # ES strategy, or a baseline's Learner
         if config.init_from and (options.restart or not checkpoints.checkpoint_steps(run_path)):
-            state = methods.warm_start(state, self.layout, Path(config.init_from))  # then saved as checkpoint 0
+            # Then saved as checkpoint 0. Whoever gave this config named its environment: that one is trusted.
+            state = methods.warm_start(state, self.layout, Path(config.init_from), trust_env=config.env)
         self.state, self.metrics = runs.restore(run_path, state, restart=options.restart)
         self.start_iteration = self.state.iteration
         self.held_out = None

@@ -15,8 +15,10 @@ from pizero_ray.config import Config, ConfigError
 from pizero_ray.settings import check_minimums, lookup, setting
 from pizero_ray.trainer import compile_cache
 
-# The learning curve's settings: a run dir keeps them (evaluation.json) and a resume goes on with them.
-EVALUATION_FIELDS = ("eval_every", "eval_every_minutes", "eval_episodes", "eval_env_args")
+# The run's schedule, the learning curve's and the checkpoints': a run dir keeps it (evaluation.json) and a
+# resume goes on with it unless given other values.
+SCHEDULE_FIELDS = ("eval_every", "eval_every_minutes", "eval_episodes", "eval_env_args", "checkpoint_every",
+                   "keep_checkpoints")
 
 
 def _flag(cls: type, name: str) -> str:
@@ -45,8 +47,9 @@ class PoolOptions:
     chunk_timeout_s: float = setting(
         300.0, flag="--chunk-timeout", metavar="SECONDS", help="seconds before a worker holding a chunk counts as hung")
     cpus_per_worker: float = setting(
-        1.0, flag="--cpus-per-worker", help="CPUs per worker; a CPU worker runs a JAX CPU device on each")
-    gpus_per_worker: float = setting(0.0, flag="--gpus-per-worker", help="GPUs per worker (0: CPU workers)")
+        1.0, flag="--cpus-per-worker", minimum=0,
+        help="CPUs per worker; a CPU worker runs a JAX CPU device on each")
+    gpus_per_worker: float = setting(0.0, flag="--gpus-per-worker", minimum=0, help="GPUs per worker (0: CPU workers)")
     pin_cores: bool = setting(
         True, flag="--no-pin-cores",
         help="leave CPU workers unpinned (default: each pins itself to cores no other worker holds)")
@@ -160,9 +163,9 @@ class RunOptions:
         self.pool.validate()
         return self
 
-    def evaluation_schedule(self) -> dict:
-        """The learning curve's settings by field name (what a resume keeps unless told otherwise)."""
-        return {name: getattr(self, name) for name in EVALUATION_FIELDS}
+    def schedule(self) -> dict:
+        """The evaluation and checkpoint settings by field name (what a resume keeps unless told otherwise)."""
+        return {name: getattr(self, name) for name in SCHEDULE_FIELDS}
 
     @classmethod
     def create(cls, **values: Any) -> "RunOptions":

@@ -88,3 +88,47 @@ def test_a_continuous_environments_action_bounds_are_checked():
     assert not env.spec.discrete and check_environment(env) is env
     with pytest.raises(ValueError, match="action_low must be below spec.action_high"):
         check_environment(env._replace(spec=env.spec._replace(action_low=1.0)))
+
+
+def _mask_empty_after(env, steps):
+    """``env`` whose mask has no legal action from its ``steps``-th step on (0: from reset)."""
+    def emptied(state, observation):
+        empty = observation.action_mask & (state.t < steps)
+        return observation._replace(action_mask=empty)
+
+    def reset(key):
+        state, observation = env.reset(key)
+        return state, emptied(state, observation)
+
+    def step(state, action):
+        state, observation, reward, done = env.step(state, action)
+        return state, emptied(state, observation), reward, done & False  # never ends first
+
+    return env._replace(reset=reset, step=step)
+
+
+@pytest.mark.parametrize("steps, where", [(0, "reset"), (2, "step 2")])
+def test_an_action_mask_with_no_legal_action_is_one_line(steps, where):
+    with pytest.raises(ValueError) as raised:
+        check_environment(_mask_empty_after(corridor.make(), steps), "mine:make")
+    assert str(raised.value) == (f"environment 'mine:make': {where}'s observation.action_mask has no legal action: "
+                                 "at least one action must always be legal")
+
+
+def test_an_environment_that_breaks_only_under_vmap_is_one_line_naming_it():
+    import jax
+    import numpy as np
+
+    env = corridor.make()
+
+    def step(state, action):  # a host callback without a vmap_method: fine alone, broken in a batch
+        state, observation, reward, done = env.step(state, action)
+        reward = jax.pure_callback(np.float32, jax.ShapeDtypeStruct((), jnp.float32), reward)
+        return state, observation, reward, done
+
+    with pytest.raises(ValueError) as raised:
+        check_environment(env._replace(step=step), "mine:make")
+    message = str(raised.value)
+    assert message.startswith("environment 'mine:make': step under jax.vmap failed while tracing: "
+                              "NotImplementedError: vmap is only supported"), message
+    assert "\n" not in message
