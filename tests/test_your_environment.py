@@ -36,7 +36,7 @@ def trained(tmp_path_factory):
 def test_the_example_trains_by_import_path_on_a_real_worker(trained):
     run, finished = trained
     assert finished.returncode == 0, finished.stderr[-3000:]
-    assert "local Ray instance, 1 workers" in finished.stderr
+    assert "local Ray instance, asking for 1 worker," in finished.stderr
     assert json.loads(finished.stdout.strip().splitlines()[-1])["iteration"] == 2
     config = run_dir.read_config(run)  # the import path is recorded, for eval, render and resume
     assert config.env == EXAMPLE and dict(config.env_args) == {"length": 5}

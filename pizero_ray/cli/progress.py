@@ -16,8 +16,12 @@ def progress_callbacks(options, no_progress: bool):
 
 
 def _start_line(info: dict) -> str:
-    return (f"pizero: {info['connection']}, {info['workers']} workers, {info['parameters']} parameters, "
-            f"starting at iteration {info['start_iteration']}")
+    """Where the run trains and from where; the workers asked for (the rows say how many are live)."""
+    parts = [info["connection"]]
+    if info["workers"]:  # ES: a baseline trains in this process
+        parts.append(f"asking for {info['workers']} worker{'' if info['workers'] == 1 else 's'}")
+    parts += [f"{info['parameters']} parameters", f"starting at iteration {info['start_iteration']}"]
+    return "pizero: " + ", ".join(parts)
 
 
 def _line_callbacks(options):

@@ -78,11 +78,34 @@ def serialized_bytes(obj) -> int:
     return len(header) + sum(buffer.raw().nbytes for buffer in buffers)
 
 
+# Lines of an error's text that say nothing of the error: JAX's note on the frames it filtered from a traceback,
+# its rule, and Python's words between chained exceptions. Under a traceback they can be its last lines.
+_SAYS_NOTHING = ("For simplicity, JAX has removed its internal frames", "-----",
+                 "The above exception was the direct cause", "During handling of the above exception")
+
+
 def last_line(error: BaseException | str) -> str:
-    """The last non-blank line of an error's text: Ray's errors from an actor carry its whole traceback, whose
-    last line is the exception itself."""
-    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    """The last telling line of an error's text: Ray's errors from an actor carry its whole traceback, whose
+    last line is the exception itself (but for the lines that say nothing)."""
+    lines = [line.strip() for line in str(error).splitlines()
+             if line.strip() and not line.strip().startswith(_SAYS_NOTHING)]
     return lines[-1] if lines else type(error).__name__
+
+
+def task_failure(error: BaseException) -> str:
+    """One line for an exception a worker's call raised (a ``RayTaskError``): the exception's type and its
+    message's first line, without the remote traceback Ray wraps around it."""
+    cause = getattr(error, "cause", None)
+    if not isinstance(cause, BaseException):
+        return last_line(error)
+    lines = [line.strip() for line in str(cause).splitlines()
+             if line.strip() and not line.strip().startswith(_SAYS_NOTHING)]
+    return f"{type(cause).__name__}: {lines[0]}" if lines else type(cause).__name__
+
+
+def _what(config: Config) -> str:
+    """The run's environment and method, as an error names them."""
+    return f"environment {config.env}, method {config.method}"
 
 
 def call_bytes(*args) -> int:
@@ -272,7 +295,7 @@ class WorkerPool:
             self._drop(worker, kill=True)  # dead already, unless only its call was lost: never leak it
             given_up = self._startup_deaths.record(error)
             if given_up:
-                raise TrainingError(given_up) from None
+                raise TrainingError(f"{_what(self._config)}: {given_up}") from None
             return
         worker.ready = True
         self._startup_deaths.clear()
@@ -549,7 +572,8 @@ class WorkerPool:
         try:
             answer = ray.get(ref, timeout=POLL_S)
         except RayTaskError as error:
-            raise TrainingError(f"a worker failed computing chunk {indices[0]}'s gradient part: {error}") from None
+            raise TrainingError(f"{_what(self._config)}: a worker failed computing chunk {indices[0]}'s gradient "
+                                f"part: {task_failure(error)}") from None
         except GetTimeoutError:
             return  # (a RayError too) slow to fetch, not dead: the part is computed elsewhere
         except RayError:
@@ -659,7 +683,8 @@ class _ChunkQueue:
         try:
             returned = ray.get(ref, timeout=self.pool._options.chunk_timeout_s)
         except RayTaskError as error:
-            raise TrainingError(f"a worker failed evaluating chunks {list(indices)}: {error}") from None
+            raise TrainingError(f"{_what(self.pool._config)}: a worker failed evaluating chunks {list(indices)}: "
+                                f"{task_failure(error)}") from None
         except GetTimeoutError:  # (a RayError too) its result is in but cannot be fetched: killed as hung
             self._fail(indices, worker, hung=True)
             return

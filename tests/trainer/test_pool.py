@@ -446,7 +446,7 @@ def test_workers_that_die_starting_stop_the_run_with_the_error_in_one_line(tmp_p
         _train(tmp_path, "none", workers=1)
     message = str(raised.value)
     assert "\n" not in message
-    assert message == ("workers keep dying while starting: "
+    assert message == ("environment tsp, method pizero: workers keep dying while starting: "
                        "ValueError: the environment's step returned a reward of shape (3,)")
 
 
@@ -711,3 +711,21 @@ def test_start_up_deaths_count_a_lost_node_once_and_each_cause_apart():
     deaths.clear()  # a worker became ready
     assert [deaths.record(ValueError("a bad reward")) for _ in range(3)][-1] == (
         "workers keep dying while starting: a bad reward")
+
+
+def test_what_a_worker_raised_is_one_line_naming_the_exception_not_its_traceback():
+    from ray.exceptions import RayTaskError
+
+    from pizero_ray.trainer.pool import last_line, task_failure
+
+    traceback = ("Traceback (most recent call last):\n  File \"workers.py\", line 60, in score_chunk\n"
+                 "jaxlib.XlaRuntimeError: INTERNAL: CpuCallback error: RuntimeError: step broke at t=7\n\nAt:\n"
+                 "  mine.py(12): step\n")
+    cause = RuntimeError("INTERNAL: CpuCallback error: RuntimeError: step broke at t=7\n\nAt:\n  mine.py(12): step")
+    assert task_failure(RayTaskError("score_chunk", traceback, cause)) == (
+        "RuntimeError: INTERNAL: CpuCallback error: RuntimeError: step broke at t=7")
+    died = ("The actor died because of an error raised in its creation task\n  File \"envs.py\", line 3\n"
+            "NotImplementedError: vmap is only supported for the pure_callback primitive\n"
+            "--------------------\nFor simplicity, JAX has removed its internal frames from the traceback of the "
+            "following exception. Set JAX_TRACEBACK_FILTERING=off to include these.")
+    assert last_line(died) == "NotImplementedError: vmap is only supported for the pure_callback primitive"
