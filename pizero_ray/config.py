@@ -24,6 +24,10 @@ FITNESS_SHAPINGS = ("centered_ranks", "none")
 ACTION_SELECTIONS = ("argmax", "sample")
 SIMULATOR_RANDOMNESS = ("sampled", "foreseen")
 EPISODE_LOOPS = ("until_done", "horizon")
+# What the decoder may be handed instead of the search's own result at evaluation: the plan ablation, which
+# tells what a trained agent's plan is worth. "shuffled": another episode's plan from the same batch (each
+# episode reads the next one's: a real plan, for another state); "zeroed": an all-zero result.
+PLAN_ABLATIONS = ("shuffled", "zeroed")
 SIMULATION_LOOPS = ("fori", "unrolled")
 
 

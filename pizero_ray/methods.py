@@ -10,6 +10,7 @@ for eval, render, inspect and ``--init-from``, without the Ray trainer.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import NamedTuple
 
@@ -71,9 +72,16 @@ def other_env(config: Config, trained_env: Environment, env_args: dict | None) -
     return env
 
 
-def acting_agent(config: Config, env: Environment, learner=None):
-    """The agent that plays a run's episodes (``learner``: initial_state's third value, if at hand)."""
+def acting_agent(config: Config, env: Environment, learner=None, plan_ablation: str | None = None,
+                 watch: str | None = None):
+    """The agent that plays a run's episodes (``learner``: initial_state's third value, if at hand).
+
+    ``plan_ablation`` and ``watch``: PiZero's plan ablation (``agent.make_agent``); a baseline has no decoder
+    reading a plan, and is refused them in one line."""
     if config.gradient_trained:
+        if plan_ablation or watch:
+            raise ConfigError(f"the plan ablation is PiZero's (a decoder reading its plan); method {config.method} "
+                              "acts on its search's visit counts")
         if learner is None:
             from pizero_ray.baselines import make_learner
 
@@ -81,7 +89,10 @@ def acting_agent(config: Config, env: Environment, learner=None):
         return learner.agent
     from pizero_ray.agent import make_agent
 
-    return make_agent(config, env.spec)
+    try:
+        return make_agent(config, env.spec, plan_ablation, watch)
+    except ValueError as error:
+        raise ConfigError(str(error)) from None
 
 
 class LoadedRun(NamedTuple):
@@ -115,6 +126,20 @@ def load_run(run_path: Path, env_args: dict | None = None, trust_env: bool | str
                                               "its trained parameters cannot be loaded")
         return LoadedRun(config, 0, theta, env, layout, agent)
     return LoadedRun(config, restored.iteration, restored.theta, env, layout, agent)
+
+
+def with_search(run: LoadedRun, simulations: int | None = None, plan_ablation: str | None = None,
+                watch: str | None = None) -> LoadedRun:
+    """``run`` whose agent searches with another budget (``simulations``, a test-time setting, as in AlphaZero
+    and MuZero) or whose decoder reads an ablated plan (``agent.make_agent``); the same parameters."""
+    config = run.config
+    if simulations is not None:
+        if config.planner == "none":
+            raise ConfigError(f"run {config.method} on {config.env} has no planner: --simulations does not apply")
+        config = dataclasses.replace(config, num_simulations=simulations).validate()
+    if config == run.config and plan_ablation is None and watch is None:
+        return run
+    return run._replace(config=config, agent=acting_agent(config, run.env, None, plan_ablation, watch))
 
 
 def warm_start(state, layout: FlatParams, source: Path, trust_env: bool | str = False):

@@ -3,6 +3,6 @@
 Pure JAX over parameter pytrees; imports neither Ray nor Orbax (tests/test_layers.py).
 """
 
-from pizero_ray.agent.pizero import Agent, StepInfo, make_agent, without_memory
+from pizero_ray.agent.pizero import PLAN_ABLATIONS, Agent, StepInfo, ablate_plan, make_agent, without_memory
 
-__all__ = ["Agent", "StepInfo", "make_agent", "without_memory"]
+__all__ = ["PLAN_ABLATIONS", "Agent", "StepInfo", "ablate_plan", "make_agent", "without_memory"]

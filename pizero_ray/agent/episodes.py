@@ -31,11 +31,12 @@ class Trajectory(NamedTuple):
 
 
 def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int, record: bool,
-          until_all_done: bool = True):
+          until_all_done: bool = True, recorded: Callable[[Step], object] | None = None):
     """(initial states, final states, scores, recorded steps or None): ``envs.base.play`` with the agent.
 
     Unrecorded episodes stop once all have ended (``until_all_done``), or always play to the horizon: the same
-    scores, a loop of unknown or of known length."""
+    scores, a loop of unknown or of known length. ``record`` keeps each step's state, action, reward and done;
+    ``recorded`` keeps what it returns of each step instead."""
     act_key = jax.random.fold_in(key, 1)
     initial_states, observations = jax.vmap(env.reset)(episode_reset_keys(key, num_episodes))
 
@@ -45,9 +46,10 @@ def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_ep
     def kept(step: Step):
         return step.state, step.action, step.reward, step.done
 
+    keep = recorded or (kept if record else None)
     playout = play(jax.vmap(env.step), policy, initial_states, observations, env.spec.horizon, (num_episodes,),
-                   policy_carry=agent.initial_memory(num_episodes), record=kept if record else None,
-                   stop_when_all_done=until_all_done and not record)
+                   policy_carry=agent.initial_memory(num_episodes), record=keep,
+                   stop_when_all_done=until_all_done and keep is None)
     return initial_states, playout.final_state, playout.total_reward, playout.recorded
 
 
@@ -73,5 +75,22 @@ def make_scorer(
     def score(theta: jax.Array, key: jax.Array):
         _, last, scores, _ = _play(agent, unravel(theta), env, key, num_episodes, record=False)
         return (scores, last) if final_states else scores
+
+    return jax.jit(score)
+
+
+def make_plan_use_scorer(agent: Agent, env: Environment, unravel: Callable[[jax.Array], Params], num_episodes: int):
+    """jit(theta [D], key) -> (scores [num_episodes], share of actions the ablated plan would change) for an agent
+    built with ``make_agent(watch=...)``: the same episodes as ``make_scorer``'s for the same key, played on the
+    agent's own plan, and at each of their steps the action the decoder would take from the ablated one."""
+    import jax.numpy as jnp
+
+    def score(theta: jax.Array, key: jax.Array):
+        def kept(step: Step):
+            return step.extra.plan_changed & ~step.ended_before, ~step.ended_before
+
+        _, _, scores, (changed, played) = _play(agent, unravel(theta), env, key, num_episodes, record=False,
+                                                recorded=kept)
+        return scores, jnp.sum(changed) / jnp.maximum(jnp.sum(played), 1)
 
     return jax.jit(score)

@@ -21,12 +21,26 @@ import jax.numpy as jnp
 from envs.base import EnvSpec, Observation
 from pizero_ray.agent import decoder, networks, planner
 from pizero_ray.agent.planner import PlanResult
-from pizero_ray.config import Config
+from pizero_ray.config import PLAN_ABLATIONS, Config
+
 
 
 class StepInfo(NamedTuple):
     latent: jax.Array  # [B, L]
     plan: PlanResult  # zeros when there is no planner
+    # [B] bool, with ``make_agent(watch=...)``: the action the decoder would take from the ablated plan differs
+    plan_changed: jax.Array | None = None
+
+
+def ablate_plan(search: PlanResult, ablation: str | None) -> PlanResult:
+    """``search`` as the decoder reads it under ``ablation`` (one of PLAN_ABLATIONS, or None: as it is)."""
+    if ablation is None:
+        return search
+    if ablation == "shuffled":
+        return jax.tree.map(lambda x: jnp.roll(x, 1, axis=0), search)
+    if ablation == "zeroed":
+        return jax.tree.map(jnp.zeros_like, search)
+    raise ValueError(f"unknown plan ablation {ablation!r} (choose from {', '.join(PLAN_ABLATIONS)})")
 
 
 class Agent(NamedTuple):
@@ -42,7 +56,15 @@ def encode(params: networks.Params, observation: Observation, memory: jax.Array)
     return jnp.tanh(networks.mlp(params["encoder"], x))  # same range as the dynamics GRU's states
 
 
-def make_agent(config: Config, spec: EnvSpec) -> Agent:
+def make_agent(config: Config, spec: EnvSpec, plan_ablation: str | None = None, watch: str | None = None) -> Agent:
+    """The agent of ``config``. ``plan_ablation``: its decoder reads the ablated plan (``ablate_plan``) instead of
+    the search's. ``watch``: it acts on its own plan, and each step also says whether the ablated one would have
+    changed its action (``StepInfo.plan_changed``): what the plan is worth, measured along its own episodes."""
+    if config.planner == "none" and (plan_ablation or watch):
+        raise ValueError("an agent without a planner has no plan to ablate")
+    for name in (plan_ablation, watch):
+        if name is not None and name not in PLAN_ABLATIONS:
+            raise ValueError(f"unknown plan ablation {name!r} (choose from {', '.join(PLAN_ABLATIONS)})")
     plan = planner.make_planner(config)
     decode = decoder.make_decoder(config, spec)
     memory_size = config.memory_size
@@ -66,9 +88,14 @@ def make_agent(config: Config, spec: EnvSpec) -> Agent:
         plan_key, action_key = jax.random.split(key)
         latent = encode(params, observation, memory)
         search = plan(params, latent, plan_key)
-        action, taken = decode.act(params["decoder"], latent, search, observation, action_key)
+        action, taken = decode.act(params["decoder"], latent, ablate_plan(search, plan_ablation), observation,
+                                   action_key)
+        changed = None
+        if watch is not None:
+            other, _ = decode.act(params["decoder"], latent, ablate_plan(search, watch), observation, action_key)
+            changed = jnp.any((other != action).reshape(action.shape[0], -1), axis=-1)
         memory = networks.gru(params["memory"], memory, jnp.concatenate([observation.vector, taken], axis=-1))
-        return action, memory, StepInfo(latent, search)
+        return action, memory, StepInfo(latent, search, changed)
 
     return Agent(init, initial_memory, act)
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 from pizero_ray.cli.arguments import (
     UsageError,
@@ -40,6 +40,14 @@ def add_compare_parser(sub) -> None:
                          help="seed of the episodes, as pizero eval's, and of the bootstrap (default 0)")
     compare.add_argument("--json", action="store_true", help="print one JSON object")
     add_env_trust_options(compare)
+    from pizero_ray.config import PLAN_ABLATIONS
+
+    for side in ("a", "b"):
+        compare.add_argument(f"--simulations-{side}", type=int_at_least(1, "positive"), metavar="N",
+                             help=f"run {side.upper()} searches with this budget (a test-time setting)")
+        compare.add_argument(f"--plan-{side}", choices=PLAN_ABLATIONS,
+                             help=f"run {side.upper()}'s decoder reads another episode's plan (shuffled) or zeros: "
+                                  "pair a run against its own plan ablation by naming it twice")
 
 
 def environment(config: Config) -> str:
@@ -67,19 +75,33 @@ def check_same_episodes(run_a: LoadedRun, run_b: LoadedRun, paths: tuple[Path, P
                          "play different episodes: compare runs on the same environment")
 
 
-def compare_runs(path_a: Path, path_b: Path, episodes: int, seed: int, trust_env: bool | str = False) -> dict:
+class Search(NamedTuple):
+    """How one side's agent searches, if not as trained: another budget, or an ablated plan."""
+
+    simulations: int | None = None
+    plan: str | None = None
+
+
+def compare_runs(path_a: Path, path_b: Path, episodes: int, seed: int, trust_env: bool | str = False,
+                 search_a: Search = Search(), search_b: Search = Search()) -> dict:
     """Both runs' unperturbed agents on the episodes of ``seed``, and their paired comparison; ``trust_env`` as
-    for ``methods.load_run``, for both."""
+    for ``methods.load_run``, for both; ``search_a``/``search_b`` change how a side searches (the same run on both
+    sides, one ablated: what its plan or its budget is worth)."""
     from pizero_ray import methods
     from pizero_ray.cli.evaluate import episode_scores
     from pizero_ray.evaluation.paired import compare_scores
 
-    run_a, run_b = (methods.load_run(path, trust_env=trust_env) for path in (path_a, path_b))
+    if (search_a.plan or search_b.plan) and episodes < 2:
+        raise UsageError("the plan ablation swaps plans between episodes: --episodes must be at least 2")
+    run_a, run_b = (methods.with_search(methods.load_run(path, trust_env=trust_env), *search)
+                    for path, search in ((path_a, search_a), (path_b, search_b)))
     check_same_episodes(run_a, run_b, (path_a, path_b), episodes, seed)
     result = {}
-    for name, path, run in (("a", path_a, run_a), ("b", path_b, run_b)):
+    for name, path, run, search in (("a", path_a, run_a, search_a), ("b", path_b, run_b, search_b)):
         result.update({f"run_{name}": str(path), f"method_{name}": run.config.method,
                        f"planner_{name}": run.config.planner,  # the baselines search with it too
+                       f"simulations_{name}": run.config.num_simulations if run.config.planner != "none" else 0,
+                       f"plan_{name}": search.plan or "intact",
                        f"env_{name}": environment(run.config),
                        f"iteration_{name}": run.iteration})
     paired = compare_scores(episode_scores(run_a, episodes, seed)[0], episode_scores(run_b, episodes, seed)[0],
@@ -96,6 +118,11 @@ def text_report(result: dict) -> str:
     lines = []
     for name in ("a", "b"):
         agent = f"{result[f'method_{name}']}, planner {result[f'planner_{name}']}"
+        if result[f"planner_{name}"] != "none":
+            simulations = result[f"simulations_{name}"]
+            agent += f" with {simulations} simulation{'' if simulations == 1 else 's'}"
+        if result[f"plan_{name}"] != "intact":
+            agent += f", plan {result[f'plan_{name}']}"
         lines.append(f"run {name.upper()}: {result[f'run_{name}']} ({agent}, {result[f'env_{name}']}, "
                      f"iteration {result[f'iteration_{name}']})")
     return "\n".join([
@@ -112,6 +139,7 @@ def text_report(result: dict) -> str:
 def cmd_compare(args) -> int:
     trust = env_trust(args)
     path_a, path_b = existing_run(args.run_a, trust), existing_run(args.run_b, trust)
-    result = compare_runs(path_a, path_b, args.episodes, args.seed, trust)
+    result = compare_runs(path_a, path_b, args.episodes, args.seed, trust,
+                          Search(args.simulations_a, args.plan_a), Search(args.simulations_b, args.plan_b))
     print(json.dumps(result) if args.json else text_report(result))
     return 0

@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pizero_ray.config import ConfigError
+
 if TYPE_CHECKING:
     from pizero_ray.methods import LoadedRun
 
@@ -36,41 +38,47 @@ def episode_scores(run: LoadedRun, episodes: int, seed: int) -> tuple[np.ndarray
 
 
 def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
-                 zero_memory: bool = False, trust_env: bool | str = False) -> dict:
-    """The unperturbed agent on fresh episodes; ``env_args`` override the run's (e.g. other levels);
-    ``zero_memory`` holds the agent's memory at its initial zeros (``agent.without_memory``); ``trust_env``
-    as for ``methods.load_run``."""
-    return evaluate_run_scores(run_path, episodes, seed, env_args, zero_memory, trust_env)[0]
+                 zero_memory: bool = False, trust_env: bool | str = False, simulations: int | None = None,
+                 plan: str | None = None) -> dict:
+    """The unperturbed agent on fresh episodes (``evaluate_run_scores``'s report)."""
+    return evaluate_run_scores(run_path, episodes, seed, env_args, zero_memory, trust_env, simulations, plan)[0]
 
 
 def evaluate_run_scores(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
-                        zero_memory: bool = False, trust_env: bool | str = False) -> tuple[dict, np.ndarray]:
-    """``evaluate_run``'s report, and the scores it summarises in episode order (``episode_scores``)."""
+                        zero_memory: bool = False, trust_env: bool | str = False, simulations: int | None = None,
+                        plan: str | None = None) -> tuple[dict, np.ndarray]:
+    """The unperturbed agent on fresh episodes, and the scores it summarises in episode order (``episode_scores``).
+
+    ``env_args`` override the run's (e.g. other levels); ``zero_memory`` holds the agent's memory at its initial
+    zeros (``agent.without_memory``); ``trust_env`` as for ``methods.load_run``; ``simulations`` searches with
+    that budget; ``plan`` (``agent.PLAN_ABLATIONS``) has the decoder read an ablated plan, and the report then
+    says what that costs the same agent on the same episodes (``plan_ablation``).
+    """
     import jax
 
     from pizero_ray import methods
     from pizero_ray.agent import episodes as play
     from pizero_ray.agent import without_memory
 
-    run = methods.load_run(run_path, env_args, trust_env)
-    config, iteration, env = run.config, run.iteration, run.env
+    run = methods.with_search(methods.load_run(run_path, env_args, trust_env), simulations)
+    if plan is not None and episodes < 2:
+        raise ConfigError(f"the plan ablation swaps plans between episodes: --episodes must be at least 2, "
+                          f"got {episodes}")
+    intact = run
+    if plan is not None:
+        run = methods.with_search(run, plan_ablation=plan)
     if zero_memory:
-        run = run._replace(agent=without_memory(run.agent))
+        run, intact = (r._replace(agent=without_memory(r.agent)) for r in (run, intact))
     scores, final_states = episode_scores(run, episodes, seed)
-    low, high = confidence_interval95(scores)
-    result = {
-        "env": config.env,
-        "method": config.method,
-        "planner": config.planner,
-        "iteration": iteration,
-        "episodes": episodes,
-        "seed": seed,
-        "mean_score": float(scores.mean()),
-        "std_score": float(scores.std(ddof=1)) if episodes > 1 else 0.0,
-        "ci95": [low, high],
-    }
+    result = _report(run, episodes, seed, scores)
+    if simulations is not None:
+        result["simulations"] = simulations
     if zero_memory:
         result["memory"] = "zeroed"
+    if plan is not None:
+        result["plan"] = plan
+        result.update(plan_ablation(intact, plan, episodes, seed, scores))
+    env = run.env
     if env.episode_metrics is not None:
         for name, values in env.episode_metrics(final_states).items():
             result[f"mean_{name}"] = float(np.mean(values))
@@ -78,3 +86,29 @@ def evaluate_run_scores(run_path: Path, episodes: int, seed: int, env_args: dict
         initial_states, _ = jax.vmap(env.reset)(play.episode_reset_keys(jax.random.PRNGKey(seed), episodes))
         result.update(env.references(initial_states, scores))
     return result, scores
+
+
+def _report(run: LoadedRun, episodes: int, seed: int, scores: np.ndarray) -> dict:
+    low, high = confidence_interval95(scores)
+    return {"env": run.config.env, "method": run.config.method, "planner": run.config.planner,
+            "iteration": run.iteration, "episodes": episodes, "seed": seed, "mean_score": float(scores.mean()),
+            "std_score": float(scores.std(ddof=1)) if episodes > 1 else 0.0, "ci95": [low, high]}
+
+
+def plan_ablation(intact: LoadedRun, ablation: str, episodes: int, seed: int, ablated_scores: np.ndarray) -> dict:
+    """What the plan is worth to ``intact``'s agent: its own score on the same episodes, the paired difference
+    (ablated minus intact) with its 95% BCa interval, the share of episodes whose score did not change, and the
+    share of its actions the ablated plan would have changed along its own episodes."""
+    import jax
+
+    from pizero_ray import methods
+    from pizero_ray.agent import episodes as play
+    from pizero_ray.evaluation.paired import compare_scores
+
+    watching = methods.with_search(intact, watch=ablation)
+    scorer = play.make_plan_use_scorer(watching.agent, watching.env, watching.layout.unravel, episodes)
+    intact_scores, changed = scorer(intact.theta, jax.random.PRNGKey(seed))
+    paired = compare_scores(ablated_scores, np.asarray(intact_scores, np.float64), seed=seed)
+    return {"intact_mean_score": paired.mean_b, "plan_difference": paired.mean_difference,
+            "plan_difference_ci95": list(paired.interval), "share_episodes_unchanged": paired.tied,
+            "share_actions_changed": float(changed)}

@@ -51,6 +51,18 @@ def add_eval_parser(sub) -> None:
                                "split(fold_in(PRNGKey(S), 0)) resets: the same for every run on the environment; "
                                "the same --seed and --episodes replay the whole evaluation")
     add_env_trust_options(evaluate)
+    _add_search_options(evaluate)
+
+
+def _add_search_options(parser: argparse.ArgumentParser) -> None:
+    from pizero_ray.config import PLAN_ABLATIONS
+
+    parser.add_argument("--simulations", type=positive_int, metavar="N",
+                        help="search with this budget instead of the run's (a test-time setting; the same parameters)")
+    parser.add_argument("--plan", choices=PLAN_ABLATIONS,
+                        help="PiZero's plan ablation: the decoder reads another episode's plan (shuffled) or zeros; "
+                             "also reports the intact agent on the same episodes, the paired difference, and the "
+                             "share of its actions the ablation changes")
 
 
 def add_render_parser(sub) -> None:
@@ -95,6 +107,10 @@ def add_plot_parser(sub) -> None:
     plot.add_argument("--title", default=None)
 
 
+# What a learning-curve evaluation writes in its metrics row (trainer.driver._Run.evaluate).
+EVALUATION_KEYS = ("eval_mean_score", "eval_plan_shuffled_score", "eval_plan_actions_changed")
+
+
 def _print_report(result: dict, as_json: bool, key_width: int) -> None:
     """One JSON object, or one aligned ``key: value`` line per entry."""
     if as_json:
@@ -111,7 +127,8 @@ def cmd_eval(args) -> int:
     per_episode_path = per_episode.checked_path(args.per_episode) if args.per_episode else None
     trust = env_trust(args)
     result, scores = evaluate_run_scores(existing_run(args.run_dir, trust), args.episodes, args.seed,
-                                         dict(args.env_arg), zero_memory=args.zero_memory, trust_env=trust)
+                                         dict(args.env_arg), zero_memory=args.zero_memory, trust_env=trust,
+                                         simulations=args.simulations, plan=args.plan)
     if per_episode_path is not None:
         result["per_episode"] = str(per_episode.write(per_episode_path, scores, args.seed))
     _print_report(result, args.json, key_width=30)
@@ -135,6 +152,10 @@ def cmd_inspect(args) -> int:
         "checkpoints": checkpoints.checkpoint_steps(run_path),
         "metrics_rows": sum(1 for row in rundir.read_metrics(run_path) if row["iteration"] > 0),
     }
+    evaluated = rundir.evaluated_rows(run_path)
+    if evaluated:  # the learning curve's last point, with what the plan was worth there (an agent that plans)
+        last = evaluated[-1]
+        result["last_evaluation"] = {key: last[key] for key in ("iteration", *EVALUATION_KEYS) if key in last}
     _print_report(result, args.json, key_width=16)
     return 0
 

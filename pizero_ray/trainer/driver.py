@@ -81,11 +81,12 @@ class _Run:
             state = methods.warm_start(state, self.layout, Path(config.init_from), trust_env=config.env)
         self.state, self.metrics = runs.restore(run_path, state, restart=options.restart)
         self.start_iteration = self.state.iteration
-        self.held_out = None
+        self.held_out = self.plan_use = None
         if options.eval_every > 0 or options.eval_every_minutes is not None:
             eval_env = methods.other_env(config, env, dict(options.eval_env_args))
             agent = methods.acting_agent(config, eval_env, self.method if eval_env is env else None)
             self.held_out = episodes.make_scorer(agent, eval_env, self.layout.unravel, options.eval_episodes)
+            self.plan_use = _plan_use_scorers(config, eval_env, self.layout.unravel, options.eval_episodes)
         # The gradient-trained baselines learn in this process; ES farms its population out to the pool.
         self.pool = None if config.gradient_trained else WorkerPool(config, options.pool, worker_factory)
         self.writer = checkpoints.CheckpointWriter(run_path, options.keep_checkpoints)
@@ -100,13 +101,20 @@ class _Run:
     def save(self) -> None:
         runs.save(self.writer, self.config, self.state)
 
-    def held_out_score(self) -> float:
+    def evaluate(self) -> dict:
+        """The learning curve's evaluation on the held-out episodes: the agent's mean score and, for an agent
+        that plans, what its plan is worth (``_plan_use_scorers``)."""
         import jax
 
         started = time.time()
-        score = float(self.held_out(self.state.theta, jax.random.PRNGKey(EVAL_SEED)).mean())
+        key = jax.random.PRNGKey(EVAL_SEED)
+        found = {"eval_mean_score": float(self.held_out(self.state.theta, key).mean())}
+        if self.plan_use is not None:
+            watched, shuffled = self.plan_use
+            found["eval_plan_actions_changed"] = float(watched(self.state.theta, key)[1])
+            found["eval_plan_shuffled_score"] = float(shuffled(self.state.theta, key).mean())
         self.evaluating_s += time.time() - started
-        return score
+        return found
 
     def wall_time_s(self) -> float:
         """Training wall-clock of the whole run (this session's after what the metrics held), without evaluations.
@@ -129,7 +137,7 @@ class _Run:
             self.save()  # a run killed before its first periodic checkpoint still resumes (prepare_resume)
         if self.held_out is not None and not self.metrics:
             # Row 0: the untrained agent, so every learning curve has its starting point.
-            self.write({"iteration": 0, "eval_mean_score": self.held_out_score(), "wall_time_s": 0.0})
+            self.write({"iteration": 0, **self.evaluate(), "wall_time_s": 0.0})
 
     def iterate(self, stop: Callable[[], bool]) -> dict:
         """One iteration of the run's method; raises Interrupted on a stop (ES)."""
@@ -190,7 +198,7 @@ class _Run:
         # ends a run is always the evaluated one (a fresh look at the clock a moment later could differ).
         self.finished = self.reached_iterations() or self.out_of_time(row["wall_time_s"])
         if self.held_out is not None and (self.eval_due(iteration, row["wall_time_s"]) or self.finished):
-            row["eval_mean_score"] = self.held_out_score()
+            row.update(self.evaluate())
             self.next_eval_s = _next_multiple(row["wall_time_s"], options.eval_every_minutes)
         self.write(row)
         if options.checkpoint_every > 0 and iteration % options.checkpoint_every == 0:
@@ -211,6 +219,20 @@ class _Run:
         self.writer.close()
         if self.pool is not None:
             self.pool.shutdown()
+
+
+def _plan_use_scorers(config: Config, env, unravel, num_episodes: int):
+    """(the agent watching its shuffled plan, the agent reading it) on the held-out episodes, for PiZero with a
+    planner; None otherwise. The first gives the share of its actions another episode's plan would change, the
+    second the score with that plan: what the plan is worth, at every point of the learning curve."""
+    if config.gradient_trained or config.planner == "none" or num_episodes < 2:
+        return None
+    from pizero_ray.agent import episodes
+
+    watching = methods.acting_agent(config, env, watch="shuffled")
+    ablated = methods.acting_agent(config, env, plan_ablation="shuffled")
+    return (episodes.make_plan_use_scorer(watching, env, unravel, num_episodes),
+            episodes.make_scorer(ablated, env, unravel, num_episodes))
 
 
 def _next_multiple(seconds: float, every_minutes: float | None) -> float:

@@ -132,7 +132,8 @@ def test_a_baseline_is_reported_with_the_planner_it_searches_with(runs_here, tmp
     result = _compare(baseline, runs_here["untrained"], capsys, "--episodes", "4")
     assert (result["method_a"], result["planner_a"]) == ("alphazero", "gumbel")
     assert evaluate_run(baseline, episodes=4, seed=0)["planner"] == "gumbel"
-    assert text_report(result).splitlines()[0] == f"run A: {baseline} (alphazero, planner gumbel, tsp, iteration 0)"
+    assert text_report(result).splitlines()[0] == (f"run A: {baseline} (alphazero, planner gumbel with 32 simulations, "
+                                                   "tsp, iteration 0)")
 
 
 @pytest.mark.parametrize("env, env_args, named", [("tsp", {"num_cities": 5}, "(tsp num_cities=5)"),
@@ -178,3 +179,47 @@ def test_bad_input_is_one_line_naming_the_value(runs_here, tmp_path, monkeypatch
     assert code == 2 and err[-1].startswith(("pizero: error: ", "pizero compare: error: ")), err
     assert named in err[-1], err
     assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+@pytest.fixture(scope="module")
+def planners_here(tmp_path_factory):
+    """Untrained tiny PiZero runs with a planner: one whose decoder reads only the abstract state, one whose
+    decoder reads only the search's abstract action."""
+    root = tmp_path_factory.mktemp("planners")
+    paths = {inputs: root / inputs for inputs in ("state", "action")}
+    for inputs, path in paths.items():
+        run_dir.write_config(path, build_config("tiny", decoder_inputs=(inputs,)))
+    return paths
+
+
+def test_a_run_paired_with_its_own_plan_ablation(planners_here):
+    from pizero_ray.cli.compare import Search
+
+    blind = compare_runs(planners_here["state"], planners_here["state"], 16, 0, search_b=Search(plan="shuffled"))
+    assert blind["mean_difference"] == 0.0 and blind["share_tied"] == 1.0  # a decoder that cannot read the plan
+    assert (blind["plan_a"], blind["plan_b"]) == ("intact", "shuffled")
+    reading = compare_runs(planners_here["action"], planners_here["action"], 16, 0, search_b=Search(plan="shuffled"))
+    assert reading["share_tied"] < 1.0
+    assert "plan shuffled" in text_report(reading).splitlines()[1]
+
+
+def test_a_run_paired_with_another_search_budget(planners_here, capsys):
+    code, out, _ = _run(["compare", str(planners_here["action"]), str(planners_here["action"]), "--episodes", "8",
+                         "--simulations-a", "1", "--json"], capsys)
+    result = json.loads(out)
+    assert code == 0 and (result["simulations_a"], result["simulations_b"]) == (1, 2)  # tiny's budget is 2
+
+
+def test_eval_plan_ablation_reports_what_the_plan_is_worth(planners_here):
+    blind = evaluate_run(planners_here["state"], 16, 0, plan="shuffled")
+    assert blind["plan_difference"] == 0.0 and blind["share_actions_changed"] == 0.0
+    assert blind["share_episodes_unchanged"] == 1.0 and blind["mean_score"] == blind["intact_mean_score"]
+    reading = evaluate_run(planners_here["action"], 16, 0, plan="zeroed", simulations=1)
+    assert reading["share_actions_changed"] > 0 and reading["simulations"] == 1 and reading["plan"] == "zeroed"
+
+
+def test_the_plan_ablation_is_refused_where_there_is_no_plan(runs_here, capsys):
+    code, _, err = _run(["eval", str(runs_here["untrained"]), "--plan", "shuffled", "--episodes", "4"], capsys)
+    assert code == 2 and len(err) == 1 and "no plan to ablate" in err[0], err
+    code, _, err = _run(["eval", str(runs_here["untrained"]), "--simulations", "3", "--episodes", "4"], capsys)
+    assert code == 2 and len(err) == 1 and "has no planner" in err[0], err

@@ -55,7 +55,10 @@ def test_two_workers_write_metrics_checkpoints_and_a_hash(two_iterations, tmp_pa
     path, result = two_iterations
     rows = run_dir.read_metrics(path)
     assert [row["iteration"] for row in rows] == [0, 1, 2]
-    assert set(rows[0]) == {"iteration", "eval_mean_score", "wall_time_s"}  # the untrained agent
+    # The untrained agent, and what its plan is worth (the shuffled plan's score, the actions it changes)
+    assert set(rows[0]) == {"iteration", "eval_mean_score", "eval_plan_shuffled_score", "eval_plan_actions_changed",
+                            "wall_time_s"}
+    assert 0 <= rows[0]["eval_plan_actions_changed"] <= 1
     config = run_dir.read_config(path)
     # A score is minus one closed tour through the cities (one step each: the horizon) in the unit square, each
     # leg at most its diagonal.
