@@ -182,3 +182,11 @@ def env_preset(env: str, preset: str) -> dict[str, Any]:
     if preset == "gpu":  # the environment's default (views, episodes per member), at the GPU's population
         return {name: value for name, value in ENV_PRESETS[env]["default"].items() if name not in _GPU_SIZED}
     return dict(ENV_PRESETS[env].get(preset, {}))
+
+
+def preset_values(preset: str, env: str, method: str) -> dict[str, Any]:
+    """What ``preset`` sets for ``method`` on ``env``, layer over layer as ``config.build_config`` applies them
+    (without the chunk size that follows the population): the defaults ``pizero train --help`` shows."""
+    layers = (PRESETS[preset], env_preset(env, preset), METHOD_PRESETS.get(method, {}),
+              METHOD_ENV_PRESETS.get((method, env), {}))
+    return {name: value for layer in layers for name, value in layer.items()}

@@ -217,10 +217,20 @@ def test_the_gpu_preset_keeps_each_environments_default_at_a_device_sized_popula
 def test_train_help_names_each_method_environment_setting_from_its_table():
     (sub,) = [a for a in commands.build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
     train = {a.dest: a.help for a in sub.choices["train"]._actions}
-    assert train["num_simulations"] == "search budget K (alphazero on tsp, flp, flp-mean: 32)"
-    assert train["replay_size"].endswith("(muzero on collect, pacman, pacman-po: 1024)")
-    assert train["action_grid"].endswith("(muzero on flp, flp-mean: 8)")
-    assert train["batch_size"].endswith("positions per Adam step")  # no table entry, no note
+    assert train["num_simulations"] == "search budget K (alphazero on tsp, flp, flp-mean: 32) (default 10)"
+    assert train["replay_size"].endswith("(muzero on collect, pacman, pacman-po: 1024) (default 256)")
+    assert train["action_grid"].endswith("(muzero on flp, flp-mean: 8) (default 16)")
+    assert train["batch_size"].endswith("positions per Adam step (default 128)")  # no table entry, no note
+
+
+def test_train_help_shows_the_default_presets_values_and_says_whose_they_are():
+    (sub,) = [a for a in commands.build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    train = sub.choices["train"]
+    helps = {a.dest: a.help for a in train._actions}
+    default = build_config("default")
+    assert helps["perturbation_rank"].endswith(f"(default {default.perturbation_rank})")  # the preset's, not 0
+    assert helps["learning_rate"].endswith(f"(default {default.learning_rate:g})")
+    assert helps["run_dir"] and "--preset default's on --env tsp" in train.description
 
 
 def test_every_option_of_train_is_a_declared_setting_or_the_commands_own():

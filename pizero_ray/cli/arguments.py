@@ -85,25 +85,38 @@ def _argparse_type(s: Setting) -> dict:
     return {"type": None if kind is str else kind}
 
 
-def _help(s: Setting, show_default: bool) -> str:
+def _shown(value) -> str:
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, tuple):
+        return ",".join(f"{item[0]}={item[1]}" if isinstance(item, tuple) else str(item) for item in value)
+    if isinstance(value, dict):
+        return ",".join(f"{key}={item}" for key, item in value.items())
+    return str(value)
+
+
+def _help(s: Setting, show_default: bool, defaults: dict | None = None) -> str:
     text = s.help
     notes = method_env_notes(s.name)  # the per-method, per-environment values, from their one table
     if notes:
         text += f" ({'; '.join(notes)})"
     if s.choices is not None:
         text += f" (one of {', '.join(s.allowed)})"
-    if show_default and s.has_default and s.default is not None and s.type is not bool:
-        text += f" (default {s.default:g})" if isinstance(s.default, float) else f" (default {s.default})"
+    default = (defaults or {}).get(s.name, s.default if s.has_default else None)
+    if show_default and default not in (None, ()) and s.type is not bool:
+        text += f" (default {_shown(default)})"
     return text.replace("%", "%%")
 
 
-def add_settings(parser: argparse.ArgumentParser, cls: type, show_defaults: bool, exclude=()) -> None:
+def add_settings(parser: argparse.ArgumentParser, cls: type, show_defaults: bool, exclude=(),
+                 defaults: dict | None = None) -> None:
     """One option per declared setting of ``cls`` with a flag (but those named in ``exclude``); its default is
-    None, so an absent option leaves the dataclass default (or, for the config, the preset's value) in place."""
+    None, so an absent option leaves the dataclass default (or, for the config, the preset's value) in place.
+    ``defaults``: the values --help shows where they are not the declared ones (a preset's)."""
     for s in declared(cls):
         if s.flag is not None and s.name not in exclude:
             extra = {"metavar": s.metavar} if s.metavar else {}
-            parser.add_argument(s.flag, dest=s.name, default=None, help=_help(s, show_defaults),
+            parser.add_argument(s.flag, dest=s.name, default=None, help=_help(s, show_defaults, defaults),
                                 **_argparse_type(s), **extra)
 
 

@@ -10,6 +10,7 @@ that change only what an agent observes (a view, an encoding) may differ.
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
@@ -17,6 +18,7 @@ from typing import TYPE_CHECKING, NamedTuple
 from pizero_ray.cli.arguments import (
     UsageError,
     add_env_trust_options,
+    env_arg,
     env_trust,
     existing_run,
     int_at_least,
@@ -40,6 +42,8 @@ def add_compare_parser(sub) -> None:
                          help="seed of the episodes, as pizero eval's, and of the bootstrap (default 0)")
     compare.add_argument("--json", action="store_true", help="print one JSON object")
     add_env_trust_options(compare)
+    compare.add_argument("--env-arg", action="append", type=env_arg, default=[], metavar="KEY=VALUE",
+                         help="play both on the environment with this parameter changed (e.g. levels=PATH)")
     from pizero_ray.config import PLAN_ABLATIONS
 
     for side in ("a", "b"):
@@ -83,17 +87,19 @@ class Search(NamedTuple):
 
 
 def compare_runs(path_a: Path, path_b: Path, episodes: int, seed: int, trust_env: bool | str = False,
-                 search_a: Search = Search(), search_b: Search = Search()) -> dict:
+                 search_a: Search = Search(), search_b: Search = Search(), env_args: dict | None = None,
+                 playing=contextlib.nullcontext) -> dict:
     """Both runs' unperturbed agents on the episodes of ``seed``, and their paired comparison; ``trust_env`` as
     for ``methods.load_run``, for both; ``search_a``/``search_b`` change how a side searches (the same run on both
-    sides, one ablated: what its plan or its budget is worth)."""
+    sides, one ablated: what its plan or its budget is worth); ``env_args`` override both runs' environment
+    parameters (Sokoban's valid levels, say); ``playing()`` a context around the playing, once both are loaded."""
     from pizero_ray import methods
     from pizero_ray.cli.evaluate import episode_scores
     from pizero_ray.evaluation.paired import compare_scores
 
     if (search_a.plan or search_b.plan) and episodes < 2:
         raise UsageError("the plan ablation swaps plans between episodes: --episodes must be at least 2")
-    run_a, run_b = (methods.with_search(methods.load_run(path, trust_env=trust_env), *search)
+    run_a, run_b = (methods.with_search(methods.load_run(path, env_args, trust_env), *search)
                     for path, search in ((path_a, search_a), (path_b, search_b)))
     check_same_episodes(run_a, run_b, (path_a, path_b), episodes, seed)
     result = {}
@@ -104,33 +110,45 @@ def compare_runs(path_a: Path, path_b: Path, episodes: int, seed: int, trust_env
                        f"plan_{name}": search.plan or "intact",
                        f"env_{name}": environment(run.config),
                        f"iteration_{name}": run.iteration})
-    paired = compare_scores(episode_scores(run_a, episodes, seed)[0], episode_scores(run_b, episodes, seed)[0],
-                            seed=seed)
+    with playing():
+        paired = compare_scores(episode_scores(run_a, episodes, seed)[0], episode_scores(run_b, episodes, seed)[0],
+                                seed=seed)
     return {**result, "episodes": episodes, "seed": seed, "mean_score_a": paired.mean_a,
             "mean_score_b": paired.mean_b, "mean_difference": paired.mean_difference,
             "ci95": list(paired.interval), "share_a_higher": paired.a_higher, "share_tied": paired.tied,
             "share_b_higher": paired.b_higher}
 
 
+# How a baseline's search is named: AlphaZero and MuZero search with mctx's MuZero policy (PUCT) or Gumbel.
+_BASELINE_SEARCH = {"muzero": "PUCT search", "gumbel": "Gumbel search"}
+
+
+def agent_label(method: str, planner: str, simulations: int, plan: str = "intact") -> str:
+    """The agent as a person reads it: "pizero, planner muzero with 10 simulations", "alphazero, PUCT search with
+    32 simulations"; "es, no planner"."""
+    if planner == "none":
+        label = f"{method}, no planner"
+    else:
+        search = _BASELINE_SEARCH[planner] if method in ("alphazero", "muzero") else f"planner {planner}"
+        label = f"{method}, {search} with {simulations} simulation{'' if simulations == 1 else 's'}"
+    return label if plan == "intact" else f"{label}, plan {plan}"
+
+
 def text_report(result: dict) -> str:
-    """What ``compare_runs`` found, in a few lines."""
+    """What ``compare_runs`` found, in a few lines; every score with 4 decimals."""
     low, high = result["ci95"]
     lines = []
     for name in ("a", "b"):
-        agent = f"{result[f'method_{name}']}, planner {result[f'planner_{name}']}"
-        if result[f"planner_{name}"] != "none":
-            simulations = result[f"simulations_{name}"]
-            agent += f" with {simulations} simulation{'' if simulations == 1 else 's'}"
-        if result[f"plan_{name}"] != "intact":
-            agent += f", plan {result[f'plan_{name}']}"
+        agent = agent_label(result[f"method_{name}"], result[f"planner_{name}"], result[f"simulations_{name}"],
+                            result[f"plan_{name}"])
         lines.append(f"run {name.upper()}: {result[f'run_{name}']} ({agent}, {result[f'env_{name}']}, "
                      f"iteration {result[f'iteration_{name}']})")
     return "\n".join([
         *lines,
         f"episodes: {result['episodes']} (seed {result['seed']}), the same for both",
-        f"mean score A: {result['mean_score_a']:#.6g}",
-        f"mean score B: {result['mean_score_b']:#.6g}",
-        f"mean A - B: {result['mean_difference']:+#.6g}, 95% BCa interval [{low:+#.6g}, {high:+#.6g}]",
+        f"mean score A: {result['mean_score_a']:.4f}",
+        f"mean score B: {result['mean_score_b']:.4f}",
+        f"mean A - B: {result['mean_difference']:+.4f}, 95% BCa interval [{low:+.4f}, {high:+.4f}]",
         f"A higher on {result['share_a_higher']:.1%} of episodes, tied on {result['share_tied']:.1%}, "
         f"B higher on {result['share_b_higher']:.1%}",
     ])
@@ -139,7 +157,11 @@ def text_report(result: dict) -> str:
 def cmd_compare(args) -> int:
     trust = env_trust(args)
     path_a, path_b = existing_run(args.run_a, trust), existing_run(args.run_b, trust)
+    from pizero_ray.cli.progress import stage
+
     result = compare_runs(path_a, path_b, args.episodes, args.seed, trust,
-                          Search(args.simulations_a, args.plan_a), Search(args.simulations_b, args.plan_b))
+                          Search(args.simulations_a, args.plan_a), Search(args.simulations_b, args.plan_b),
+                          dict(args.env_arg),
+                          playing=lambda: stage("pizero compare", f"playing {args.episodes} episodes with each agent"))
     print(json.dumps(result) if args.json else text_report(result))
     return 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -46,13 +47,14 @@ def evaluate_run(run_path: Path, episodes: int, seed: int, env_args: dict | None
 
 def evaluate_run_scores(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
                         zero_memory: bool = False, trust_env: bool | str = False, simulations: int | None = None,
-                        plan: str | None = None) -> tuple[dict, np.ndarray]:
+                        plan: str | None = None, playing=contextlib.nullcontext) -> tuple[dict, np.ndarray]:
     """The unperturbed agent on fresh episodes, and the scores it summarises in episode order (``episode_scores``).
 
     ``env_args`` override the run's (e.g. other levels); ``zero_memory`` holds the agent's memory at its initial
     zeros (``agent.without_memory``); ``trust_env`` as for ``methods.load_run``; ``simulations`` searches with
     that budget; ``plan`` (``agent.PLAN_ABLATIONS``) has the decoder read an ablated plan, and the report then
-    says what that costs the same agent on the same episodes (``plan_ablation``).
+    says what that costs the same agent on the same episodes (``plan_ablation``). ``playing()``: a context
+    around the episodes played, once the run is loaded (the CLI's progress lines).
     """
     import jax
 
@@ -69,15 +71,15 @@ def evaluate_run_scores(run_path: Path, episodes: int, seed: int, env_args: dict
         run = methods.with_search(run, plan_ablation=plan)
     if zero_memory:
         run, intact = (r._replace(agent=without_memory(r.agent)) for r in (run, intact))
-    scores, final_states = episode_scores(run, episodes, seed)
-    result = _report(run, episodes, seed, scores)
+    with playing():
+        scores, final_states = episode_scores(run, episodes, seed)
+        result = _report(run, episodes, seed, scores)
+        if plan is not None:
+            result.update(plan=plan, **plan_ablation(intact, plan, episodes, seed, scores))
     if simulations is not None:
         result["simulations"] = simulations
     if zero_memory:
         result["memory"] = "zeroed"
-    if plan is not None:
-        result["plan"] = plan
-        result.update(plan_ablation(intact, plan, episodes, seed, scores))
     env = run.env
     if env.episode_metrics is not None:
         for name, values in env.episode_metrics(final_states).items():

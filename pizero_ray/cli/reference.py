@@ -24,9 +24,9 @@ rewrites this page, and `tests/cli/test_reference.py` fails when it is stale.
 the same options; `resume` the run options (the second table).
 
 Every option is checked before anything is written: a bad value is a one-line
-error naming it, exit code 2. `--preset NAME` (`default`, `paper`, `tiny`)
-chooses the defaults an option overrides; the last section lists what each
-preset changes.
+error naming it, exit code 2. `--preset NAME` (`default`, `paper`, `gpu`, `tiny`)
+chooses the defaults an option overrides; a later section lists what each
+preset changes, and the last every other command's own options.
 """
 
 
@@ -89,6 +89,46 @@ def presets_table() -> list[str]:
     return rows
 
 
+def _command_parsers() -> dict:
+    import argparse
+
+    from pizero_ray.cli import commands
+
+    (sub,) = [a for a in commands.build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    return sub.choices
+
+
+# The commands whose declared settings are the tables above; every other command's options are listed whole.
+_SETTINGS_COMMANDS = ("train", "chaos", "resume")
+_EVERY_COMMANDS_OWN = ("-h", "--help", "--verbose")  # said once, in the section's first line
+
+
+def command_tables() -> list[str]:
+    """Every command's own options, from its argparse parser (train's, chaos's and resume's but the declared
+    settings, which the tables above list): with them the page names every flag of the CLI."""
+    import argparse
+
+    settings = {s.flag for cls in (Config, RunOptions) for s in declared(cls) if s.flag}
+    lines = []
+    for name, parser in _command_parsers().items():
+        skipped = set(_EVERY_COMMANDS_OWN) | (settings if name in _SETTINGS_COMMANDS else set())
+        rows = []
+        for action in parser._actions:
+            flags = [flag for flag in action.option_strings if flag not in skipped]
+            if not flags:
+                continue
+            shown = f"{flags[-1]} {action.metavar}" if action.metavar else flags[-1]
+            default = action.default
+            if default in (None, False, [], argparse.SUPPRESS):
+                default = ""
+            elif isinstance(default, tuple):
+                default = ",".join(map(str, default))
+            rows.append(f"| `{shown}` | {_cell(action.help or '')} | {_cell(default)} |")
+        if rows:
+            lines += [f"### `pizero {name}`", "", "| option | meaning | default |", "|---|---|---|", *rows, ""]
+    return lines
+
+
 def options_reference() -> str:
     """The whole of docs/options.md."""
     parts = [HEADER, "## What is computed (the run's config.json)", "",
@@ -96,8 +136,13 @@ def options_reference() -> str:
              *options_table(Config), "", "## How it runs (`train`, `resume`, `chaos`)", "",
              *options_table(RunOptions), "", "## What the presets change", "",
              "Applied in this order, then the options given: the preset, its environment's, the method's,",
-             "the method's on that environment.", "", *presets_table()]
-    return "\n".join(parts) + "\n"
+             "the method's on that environment.", "", *presets_table(), "",
+             "## Every command's own options", "",
+             "Besides the settings above, which `train`, `chaos` and `resume` take as the tables say. Every",
+             "command also takes `--help` and `--verbose` (an unexpected error's whole traceback, not one line).",
+             "",
+             *command_tables()]
+    return "\n".join(parts).rstrip("\n") + "\n"
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ captioned (environment, step, score so far) by ``pizero_ray.cli.caption``.
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import NamedTuple
 
@@ -57,9 +58,10 @@ def episode_shots(trajectory: Trajectory, e: int) -> list[Shot]:
 
 
 def play(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
-         trust_env: bool | str = False) -> Played:
+         trust_env: bool | str = False, playing=contextlib.nullcontext) -> Played:
     """``episodes`` episodes played by the run's unperturbed agent (its newest checkpoint), every step kept;
-    ``trust_env`` as for ``methods.load_run``."""
+    ``trust_env`` as for ``methods.load_run``; ``playing()`` a context around the playing, once the run is
+    loaded."""
     import jax
 
     from pizero_ray import methods
@@ -69,7 +71,8 @@ def play(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
     if env.render is None:
         raise ConfigError(f"environment {config.env!r} has no renderer")
     record = jax.jit(lambda th, key: play_episodes.record_episodes(agent, layout.unravel(th), env, key, episodes))
-    trajectory = jax.device_get(record(theta, jax.random.PRNGKey(seed)))
+    with playing():
+        trajectory = jax.device_get(record(theta, jax.random.PRNGKey(seed)))
     return Played(env, [episode_shots(trajectory, e) for e in range(episodes)])
 
 
@@ -79,9 +82,9 @@ def shot_caption(env: Environment, shot: Shot) -> list[str]:
 
 
 def episode_frames(run_path: Path, episodes: int, seed: int, env_args: dict | None = None,
-                   trust_env: bool | str = False) -> list[np.ndarray]:
+                   trust_env: bool | str = False, playing=contextlib.nullcontext) -> list[np.ndarray]:
     """Frames of ``episodes`` episodes played by the unperturbed agent, each up to its end, legible and captioned."""
-    played = play(run_path, episodes, seed, env_args, trust_env)
+    played = play(run_path, episodes, seed, env_args, trust_env, playing)
     env = played.env
     return [caption.annotate(env.render(shot.state), shot_caption(env, shot))
             for episode in played.episodes for shot in episode]

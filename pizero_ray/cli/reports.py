@@ -102,9 +102,9 @@ def add_bench_parser(sub) -> None:
 def add_plot_parser(sub) -> None:
     plot = sub.add_parser("plot", help="learning curves of one or more runs as a PNG")
     plot.add_argument("run_dirs", nargs="+")
-    plot.add_argument("--out", required=True)
-    plot.add_argument("--labels", help="comma-separated, one per run dir")
-    plot.add_argument("--title", default=None)
+    plot.add_argument("--out", required=True, help="the PNG to write")
+    plot.add_argument("--labels", help="comma-separated, one per run dir (default: the run dirs' names)")
+    plot.add_argument("--title", default=None, help="a title above the curves")
 
 
 # What a learning-curve evaluation writes in its metrics row (trainer.driver._Run.evaluate).
@@ -125,10 +125,14 @@ def cmd_eval(args) -> int:
     from pizero_ray.cli.evaluate import evaluate_run_scores
 
     per_episode_path = per_episode.checked_path(args.per_episode) if args.per_episode else None
+    from pizero_ray.cli.progress import stage
+
     trust = env_trust(args)
-    result, scores = evaluate_run_scores(existing_run(args.run_dir, trust), args.episodes, args.seed,
-                                         dict(args.env_arg), zero_memory=args.zero_memory, trust_env=trust,
-                                         simulations=args.simulations, plan=args.plan)
+    run_path = existing_run(args.run_dir, trust)
+    doing = f"playing {args.episodes} episodes" + (f", then again with the plan {args.plan}" if args.plan else "")
+    result, scores = evaluate_run_scores(run_path, args.episodes, args.seed, dict(args.env_arg),
+                                         zero_memory=args.zero_memory, trust_env=trust, simulations=args.simulations,
+                                         plan=args.plan, playing=lambda: stage("pizero eval", doing))
     if per_episode_path is not None:
         result["per_episode"] = str(per_episode.write(per_episode_path, scores, args.seed))
     _print_report(result, args.json, key_width=30)
@@ -166,9 +170,13 @@ def cmd_render(args) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".png", ".gif"):
         raise UsageError(f"--out must end in .png or .gif, got {args.out}")
+    from pizero_ray.cli.progress import stage
+
     trust = env_trust(args)
-    frames = render.episode_frames(existing_run(args.run_dir, trust), args.episodes, args.seed, dict(args.env_arg),
-                                   trust_env=trust)
+    run_path = existing_run(args.run_dir, trust)
+    doing = f"playing and drawing {args.episodes} episode{'' if args.episodes == 1 else 's'}"
+    frames = render.episode_frames(run_path, args.episodes, args.seed, dict(args.env_arg), trust_env=trust,
+                                   playing=lambda: stage("pizero render", doing))
     print(render.write(frames, out))
     return 0
 

@@ -36,22 +36,33 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="print one line per iteration instead of a bar")
 
 
+# What --help says of the config's defaults: they are one preset's on one environment.
+CONFIG_DEFAULTS_NOTE = (f"The config options' defaults shown are --preset default's on --env {Config.env} with "
+                        f"--method {Config.method}; other environments, methods and presets change some of them: "
+                        "docs/options.md lists each.")
+
+
 def _add_config_options(parser: argparse.ArgumentParser) -> None:
-    """What the run computes (the Config); shared by train and chaos. The defaults shown by --help would
-    be the 'default' preset's: presets and environments change them, so none is shown."""
-    parser.add_argument("--preset", default="default", help=f"one of {', '.join(PRESETS)}")
-    add_settings(parser, Config, show_defaults=False)
+    """What the run computes (the Config); shared by train and chaos. --help shows the 'default' preset's
+    values on the default environment, and says so (CONFIG_DEFAULTS_NOTE)."""
+    from pizero_ray.presets import preset_values
+
+    parser.add_argument("--preset", default="default", help=f"one of {', '.join(PRESETS)} (default default)")
+    add_settings(parser, Config, show_defaults=True, defaults=preset_values("default", Config.env, Config.method))
 
 
 def add_train_parser(sub) -> None:
-    train = sub.add_parser("train", help="train a new run")
-    train.add_argument("--run-dir", required=True)
+    train = sub.add_parser("train", help="train a new run", description=CONFIG_DEFAULTS_NOTE)
+    train.add_argument("--run-dir", required=True,
+                       help="the run's directory (created): config.json, checkpoints, metrics; refused if it "
+                            "already holds a run")
     _add_config_options(train)
     _add_run_options(train)
 
 
 def add_chaos_parser(sub) -> None:
-    chaos = sub.add_parser("chaos", help="train twice, once while killing workers, and compare the parameters")
+    chaos = sub.add_parser("chaos", help="train twice, once while killing workers, and compare the parameters",
+                           description=CONFIG_DEFAULTS_NOTE)
     chaos.add_argument("--run-dir", required=True, help="gets clean/ and chaos/ run dirs")
     chaos.add_argument("--kills", type=positive_int, default=3, help="worker processes to SIGKILL (default 3)")
     chaos.add_argument("--chaos-seed", type=non_negative_int, default=0, help="where the kills fall")
@@ -131,11 +142,22 @@ def _check_fits(config: Config, options) -> None:
 
 
 def _run_training(run_path: Path, config: Config, options, no_progress: bool) -> int:
-    from pizero_ray.cli.progress import progress_callbacks
+    import time
+
+    from pizero_ray.cli.progress import progress_callbacks, summary_line
     from pizero_ray.storage.checkpoints import CheckpointSaveError
     from pizero_ray.trainer import driver
 
-    show_start, on_iteration, close = progress_callbacks(options, no_progress)
+    show_start, show_iteration, close = progress_callbacks(options, no_progress)
+    seen: dict[str, dict] = {}  # this session's first and last rows, and its last evaluated one
+    started = time.time()
+
+    def on_iteration(row: dict) -> None:
+        seen.setdefault("first", row)
+        seen["last"] = row
+        if "eval_mean_score" in row:
+            seen["evaluated"] = row
+        show_iteration(row)
 
     def on_start(info: dict) -> None:
         # The schedule is written once the run has started (its checkpoint restored, its config agreed):
@@ -151,6 +173,7 @@ def _run_training(run_path: Path, config: Config, options, no_progress: bool) ->
     except (driver.TrainingError, CheckpointSaveError) as error:  # one line; the run's last checkpoint stands
         print(f"pizero: error: {error}", file=sys.stderr)
         return 1
+    print(summary_line(result, seen, options, time.time() - started), file=sys.stderr)
     print(json.dumps({"run_dir": str(run_path), **result}))
     target = " ".join(f"--{name} {value:g}" for name, value in
                       (("iterations", options.iterations), ("minutes", options.minutes)) if value is not None)
@@ -205,8 +228,31 @@ def cmd_resume(args) -> int:
     rundir.check_location(run_path)
     if not args.restart:
         runs.check_same_config(run_path, config)  # before anything is written (the driver checks it again)
+        if not _say_where_the_run_stands(run_path, options):
+            return 0
     with writer_lock.hold(run_path):  # refused, before writing anything, while another process trains the run
         return _run_training(run_path, config, options, args.no_progress)
+
+
+def _say_where_the_run_stands(run_path: Path, options) -> bool:
+    """Says (stderr) where the resumed run stands against its targets; False when it has reached them (nothing
+    to train: no Ray is started). Judged at its newest checkpoint, where the driver continues."""
+    from pizero_ray.cli.progress import clock
+    from pizero_ray.storage import checkpoints
+
+    meta = checkpoints.newest_meta(run_path)
+    iteration = meta["iteration"] if meta else 0
+    trained_s = max((row["wall_time_s"] for row in rundir.read_metrics(run_path)
+                     if row["iteration"] <= iteration and "wall_time_s" in row), default=0.0)
+    used = f", {clock(trained_s)} of the {options.minutes:g}-minute budget trained" if options.minutes else ""
+    done = ((options.iterations is not None and iteration >= options.iterations)
+            or (options.minutes is not None and trained_s >= 60.0 * options.minutes))
+    if done:
+        print(f"pizero: run {run_path} is at iteration {iteration}{used}: nothing to train; give more with "
+              f"--iterations or --minutes", file=sys.stderr)
+        return False
+    print(f"pizero: resuming run {run_path} at iteration {iteration}{used}", file=sys.stderr)
+    return True
 
 
 def cmd_chaos(args) -> int:

@@ -124,7 +124,9 @@ class RunOptions:
     """A run: how far, on which cluster, checkpoints, evaluation; and its worker pool's options."""
 
     iterations: int | None = setting(
-        None, flag="--iterations", minimum=1, help="total iterations to reach (None: as many as --minutes allows)")
+        None, flag="--iterations", minimum=1,
+        help="total iterations to reach (train: 400 if neither this nor --minutes is given; with --minutes "
+             "alone, as many as the budget allows)")
     minutes: float | None = setting(
         None, flag="--minutes",
         help="stop, with a checkpoint, once the run has trained this many wall-clock minutes in all "

@@ -96,9 +96,10 @@ def test_trained_against_untrained_on_evals_episodes(runs_here, capsys):
 
 def test_the_text_report_names_both_runs_and_the_shares(runs_here, same_agent_twice):
     lines = text_report(same_agent_twice).splitlines()
-    assert lines[0] == f"run A: {runs_here['trained']} (pizero, planner none, tsp, iteration {ITERATIONS})"
+    assert lines[0] == f"run A: {runs_here['trained']} (pizero, no planner, tsp, iteration {ITERATIONS})"
     assert lines[2] == "episodes: 64 (seed 0), the same for both"
-    assert "mean A - B: +0.00000, 95% BCa interval [+0.00000, +0.00000]" in lines
+    assert "mean A - B: +0.0000, 95% BCa interval [+0.0000, +0.0000]" in lines
+    assert lines[3].startswith("mean score A: -") and len(lines[3].split(".")[-1]) == 4  # 4 decimals, any size
     assert lines[-1] == "A higher on 0.0% of episodes, tied on 100.0%, B higher on 0.0%"
 
 
@@ -132,7 +133,7 @@ def test_a_baseline_is_reported_with_the_planner_it_searches_with(runs_here, tmp
     result = _compare(baseline, runs_here["untrained"], capsys, "--episodes", "4")
     assert (result["method_a"], result["planner_a"]) == ("alphazero", "gumbel")
     assert evaluate_run(baseline, episodes=4, seed=0)["planner"] == "gumbel"
-    assert text_report(result).splitlines()[0] == (f"run A: {baseline} (alphazero, planner gumbel with 32 simulations, "
+    assert text_report(result).splitlines()[0] == (f"run A: {baseline} (alphazero, Gumbel search with 32 simulations, "
                                                    "tsp, iteration 0)")
 
 

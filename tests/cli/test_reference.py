@@ -40,3 +40,12 @@ def test_the_presets_table_shows_each_override_as_a_flag():
     assert "| every environment | `paper` |" in table and "`--population 1000`" in table
     assert "| `--method alphazero --env tsp` | any | `--simulations 32` |" in table
     assert "| `--env collect` | `default` | `--env-arg view=centred` |" in table
+
+
+def test_every_flag_of_every_command_is_on_the_page():
+    (sub,) = [a for a in commands.build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    page = PAGE.read_text()
+    missing = sorted({f"pizero {name} {flag}" for name, parser in sub.choices.items()
+                      for flag in parser._option_string_actions
+                      if flag.startswith("--") and not re.search(rf"`{re.escape(flag)}[` ]", page)})
+    assert not missing, f"docs/options.md does not name: {missing}"
