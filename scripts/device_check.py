@@ -22,16 +22,27 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
-import signal
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from device_common import ROOT, gpu_names, last_json, python_environment, report_header, report_path, run, save_report
+from device_common import (
+    ROOT,
+    gpu_names,
+    last_json,
+    python_environment,
+    report_header,
+    report_path,
+    run,
+    save_report,
+    stop,
+)
+
+sys.path.insert(0, str(ROOT))
+from pizero_ray.storage.run_dir import read_metrics  # noqa: E402  (pure Python: no JAX on the host needed)
 
 TRAININGS = (("tsp", ()), ("collect", ()))  # (env, extra train options)
 
@@ -75,16 +86,10 @@ def train_for(python: str, env: dict, name: str, extra: tuple, seconds: float, g
     try:
         text, _ = process.communicate(timeout=seconds)
     except subprocess.TimeoutExpired:
-        process.send_signal(signal.SIGTERM)  # pizero saves a checkpoint and exits 143
-        try:
-            text, _ = process.communicate(timeout=60)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            text, _ = process.communicate()
+        text = stop(process)  # pizero saves a checkpoint and exits 143
     result = {"env": name, "budget_s": seconds, "wall_s": round(time.time() - started, 1),
               "exit_code": process.returncode, "final": last_json(text), "output_tail": text[-1500:]}
-    metrics_path = run_dir / "metrics.jsonl"
-    rows = [json.loads(line) for line in metrics_path.read_text().splitlines()] if metrics_path.exists() else []
+    rows = read_metrics(run_dir)
     if rows:
         steady = sorted(row["iteration_time_s"] for row in rows[len(rows) // 2:])
         result.update(iterations=rows[-1]["iteration"], first_mean_score=rows[0]["mean_score"],

@@ -52,6 +52,20 @@ def run(command: list[str], env: dict, timeout_s: float, log: Path | None = None
             "seconds": round(time.time() - started, 1), "output_tail": text[-3000:]}
 
 
+def stop(process: subprocess.Popen, grace_s: float = 60.0) -> str:
+    """SIGTERMs a training still running (pizero saves a checkpoint and exits), gives it ``grace_s``, then
+    SIGKILLs its process group; returns its output (``process`` was started with stdout piped and
+    ``start_new_session``)."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGTERM)
+    try:
+        text, _ = process.communicate(timeout=grace_s)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        text, _ = process.communicate()
+    return text
+
+
 def install_wheels(python: str, wheels: Path, target: Path) -> list[str]:
     """Installs the wheels in ``wheels`` whose package ``python`` lacks (or has older) into ``target``."""
     probe = ("import importlib.metadata as m, sys\n"

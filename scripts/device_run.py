@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
 import signal
 import statistics
 import subprocess
@@ -41,7 +40,17 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from device_common import ROOT, gpu_names, last_json, python_environment, report_header, report_path, run, save_report
+from device_common import (
+    ROOT,
+    gpu_names,
+    last_json,
+    python_environment,
+    report_header,
+    report_path,
+    run,
+    save_report,
+    stop,
+)
 
 # The Config's declared settings and the bench's agent, as plain data: this process builds no Config (checking
 # one imports the environments, and JAX); the subprocesses do.
@@ -50,6 +59,7 @@ from pizero_ray.bench.plans import BENCH_AGENT, LOW_RANK  # noqa: E402
 from pizero_ray.config import Config, largest_divisor_at_most  # noqa: E402
 from pizero_ray.presets import PRESETS  # noqa: E402
 from pizero_ray.settings import lookup  # noqa: E402
+from pizero_ray.storage.run_dir import read_metrics  # noqa: E402
 
 MAIN_POPULATIONS = (64, 256, 1024, 4096, 8192, 16384, 32768)
 # The trainer check runs the gpu preset's population and chunks (launches of half the chunks: the preset's 32 of
@@ -209,11 +219,6 @@ def train_command(python: str, plan: Plan, run_dir: Path, workers: int, gpus: fl
             "--compile-cache", str(cache)]
 
 
-def metrics_rows(run_dir: Path) -> list[dict]:
-    path = run_dir / "metrics.jsonl"
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []
-
-
 def later_half_median(rows: list[dict], key: str) -> float | None:
     values = [row[key] for row in rows[len(rows) // 2:] if key in row]
     return statistics.median(values) if values else None
@@ -223,7 +228,7 @@ def trainer_run(python: str, env: dict, plan: Plan, workers: int, gpus: float, d
     """One training; its iteration and update times from metrics.jsonl (the later half's medians) and its hash."""
     run_dir = work / f"train-{workers}-workers"
     outcome = run(train_command(python, plan, run_dir, workers, gpus, work / "jax-cache"), env, deadline_s)
-    rows = metrics_rows(run_dir)
+    rows = read_metrics(run_dir)
     iteration_s, update_s = later_half_median(rows, "iteration_time_s"), later_half_median(rows, "update_time_s")
     final = last_json(outcome["output_tail"]) or {}
     return {"workers": workers, "gpus_per_worker": gpus, "exit_code": outcome["exit_code"],
@@ -359,18 +364,10 @@ def stop_at(processes: list[subprocess.Popen], seconds: float) -> list[str]:
             process.wait(timeout=max(0.0, seconds - (time.time() - started)))
         except subprocess.TimeoutExpired:
             pass
-    for process in processes:
+    for process in processes:  # every one signalled before any is waited for: they stop side by side
         if process.poll() is None:
             process.send_signal(signal.SIGTERM)
-    outputs = []
-    for process in processes:
-        try:
-            text, _ = process.communicate(timeout=60)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            text, _ = process.communicate()
-        outputs.append(text)
-    return outputs
+    return [stop(process) for process in processes]
 
 
 def learn_env(python: str, env: dict, args, env_name: str, work: Path) -> dict:
@@ -394,7 +391,7 @@ def learn_env(python: str, env: dict, args, env_name: str, work: Path) -> dict:
 
 def learned(seed: int, run_dir: Path, exit_code: int, output: str, evaluation: str) -> dict:
     """One seed's training and evaluation, from its metrics.jsonl and the two commands' last JSON lines."""
-    rows = metrics_rows(run_dir)
+    rows = read_metrics(run_dir)
     return {"seed": seed, "exit_code": exit_code, "final": last_json(output), "iterations": len(rows),
             "first_mean_score": rows[0]["mean_score"] if rows else None,
             "last_mean_scores": [row["mean_score"] for row in rows[-5:]],

@@ -28,9 +28,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from pizero_ray.cli.compare import Search, compare_runs  # noqa: E402
-from pizero_ray.cli.evaluate import evaluate_run  # noqa: E402
 from pizero_ray.config import PLAN_ABLATIONS  # noqa: E402
+from pizero_ray.evaluation.runs import Search, compare_runs, evaluate_run  # noqa: E402
 from pizero_ray.storage import run_dir  # noqa: E402
 
 DEFAULT_ABLATIONS = ("shuffled", "zeroed", "simulations=1", "simulations=30")
@@ -54,7 +53,8 @@ def measure(path: Path, ablation: str, episodes: int, seed: int) -> dict:
         found = evaluate_run(path, episodes, seed, env_args, plan=search.plan)
         return {"paired_difference": found["plan_difference"], "ci95": found["plan_difference_ci95"],
                 "share_changed": 1.0 - found["share_episodes_unchanged"],
-                "share_actions_changed": found["share_actions_changed"], "intact_mean_score": found["intact_mean_score"]}
+                "share_actions_changed": found["share_actions_changed"],
+                "intact_mean_score": found["intact_mean_score"]}
     found = compare_runs(path, path, episodes, seed, search_a=search, env_args=env_args)
     return {"paired_difference": found["mean_difference"], "ci95": found["ci95"],
             "share_changed": 1.0 - found["share_tied"], "share_actions_changed": None,

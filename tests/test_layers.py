@@ -70,7 +70,7 @@ import envs
 from pizero_ray.config import build_config
 from pizero_ray import methods
 from pizero_ray.storage import checkpoints, run_dir, runs
-from pizero_ray.cli.evaluate import evaluate_run
+from pizero_ray.evaluation.runs import evaluate_run
 path = Path({str(tmp_path)!r})
 config = build_config("tiny", env="tsp", planner="none")
 run_dir.write_config(path, config)

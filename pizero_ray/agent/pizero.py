@@ -24,7 +24,6 @@ from pizero_ray.agent.planner import PlanResult
 from pizero_ray.config import PLAN_ABLATIONS, Config
 
 
-
 class StepInfo(NamedTuple):
     latent: jax.Array  # [B, L]
     plan: PlanResult  # zeros when there is no planner

@@ -48,6 +48,8 @@ def trainer(config: Config, workers: int, iterations: int, cache_dir: str, cpus_
         "update_s": statistics.median(row["update_time_s"] for row in steady),
         "worker_first_result_s": max(first) if first else None,
         "gradient_on": where_gradient_parts_form(config, options.pool),
+        # measured: the chunks whose part the driver formed itself (all of them where parts form on the driver)
+        "gradient_parts_on_driver": statistics.median(row["gradient_parts_on_driver"] for row in steady),
         **median_traffic(steady),
     }
 

@@ -48,7 +48,10 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from pizero_ray import __version__
+
     parser = _Parser(prog="pizero", description="PiZero trained by OpenAI-ES on Ray")
+    parser.add_argument("--version", action="version", version=f"pizero-ray {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for command in COMMANDS.values():
         command.add_parser(sub)

@@ -122,7 +122,7 @@ def _print_report(result: dict, as_json: bool, key_width: int) -> None:
 
 def cmd_eval(args) -> int:
     from pizero_ray.cli import per_episode
-    from pizero_ray.cli.evaluate import evaluate_run_scores
+    from pizero_ray.evaluation.runs import evaluate_run_scores
 
     per_episode_path = per_episode.checked_path(args.per_episode) if args.per_episode else None
     from pizero_ray.cli.progress import stage

@@ -9,6 +9,7 @@ import signal
 import sys
 from pathlib import Path
 
+from pizero_ray.api import DEFAULT_ITERATIONS
 from pizero_ray.cli.arguments import (
     UsageError,
     add_env_trust_options,
@@ -23,9 +24,6 @@ from pizero_ray.config import Config, ConfigError, build_config
 from pizero_ray.presets import PRESETS
 from pizero_ray.settings import lookup
 from pizero_ray.storage import run_dir as rundir
-from pizero_ray.storage import writer_lock
-
-DEFAULT_ITERATIONS = 400
 
 
 def _add_run_options(parser: argparse.ArgumentParser) -> None:
@@ -81,21 +79,11 @@ def add_resume_parser(sub) -> None:
 
 
 def train_config(args) -> Config:
-    """The config given (over its preset), its environment parameters and warm start checked."""
-    config = build_config(args.preset, **given(Config, args))
+    """The config given (over its preset), its environment parameters and warm start checked (``api``)."""
+    from pizero_ray import api
+
+    config = api.new_run_config(args.preset, **given(Config, args))
     _note_a_smaller_chunk(args, config)
-    import envs
-
-    try:
-        envs.make(config.env, **config.env_kwargs())  # env parameters are checked before anything is written
-    except ValueError as error:
-        raise UsageError(str(error)) from None
-    if config.init_from:  # checked (it is a run dir, its agent fits) before anything is written
-        from pizero_ray import methods
-
-        config = dataclasses.replace(config, init_from=str(rundir.resolve(config.init_from)))
-        state, layout, _ = methods.initial_state(config, methods.make_env(config))
-        methods.warm_start(state, layout, Path(config.init_from), trust_env=config.env)
     return config
 
 
@@ -134,21 +122,16 @@ def run_options(args, iterations: int | None, kept: dict | None = None, config: 
     return options
 
 
-def _check_fits(config: Config, options) -> None:
-    """A configuration that cannot fit in this machine's memory is refused before anything is written."""
-    from pizero_ray import footprint, methods
-
-    footprint.check_fits(config, methods.make_env(config), options.eval_episodes)
-
-
-def _run_training(run_path: Path, config: Config, options, no_progress: bool) -> int:
+def _run_training(run_path: Path, options, no_progress: bool, trains) -> int:
+    """Runs ``trains(on_start, on_iteration)`` (``api.start_run`` or ``api.continue_run``) with the progress
+    lines, then the summary and the JSON line; a training error is one line, exit code 1."""
     import time
 
     from pizero_ray.cli.progress import progress_callbacks, summary_line
     from pizero_ray.storage.checkpoints import CheckpointSaveError
     from pizero_ray.trainer import driver
 
-    show_start, show_iteration, close = progress_callbacks(options, no_progress)
+    on_start, show_iteration, close = progress_callbacks(options, no_progress)
     seen: dict[str, dict] = {}  # this session's first and last rows, and its last evaluated one
     started = time.time()
 
@@ -159,15 +142,9 @@ def _run_training(run_path: Path, config: Config, options, no_progress: bool) ->
             seen["evaluated"] = row
         show_iteration(row)
 
-    def on_start(info: dict) -> None:
-        # The schedule is written once the run has started (its checkpoint restored, its config agreed):
-        # a refused resume leaves the run dir as it found it.
-        rundir.write_schedule(run_path, options.schedule())
-        show_start(info)
-
     try:
         try:
-            result = driver.train(run_path, config, options, on_iteration=on_iteration, on_start=on_start)
+            result = trains(on_start, on_iteration)
         finally:
             close()
     except (driver.TrainingError, CheckpointSaveError) as error:  # one line; the run's last checkpoint stands
@@ -187,34 +164,22 @@ def _run_training(run_path: Path, config: Config, options, no_progress: bool) ->
     return 0
 
 
-def _refuse_a_run_dir_with_a_run(run_path: Path) -> None:
-    from pizero_ray.storage import checkpoints
-
-    if (run_path / rundir.CONFIG_FILE).exists():
-        raise UsageError(f"run dir {run_path} already holds a run; continue it with: pizero resume {run_path}")
-    held = checkpoints.held_progress(run_path) if run_path.is_dir() else []
-    if held:  # a run whose config.json is gone: a new config would silently continue its checkpoints
-        raise UsageError(f"run dir {run_path} holds {' and '.join(held)} but no {rundir.CONFIG_FILE}: it is not "
-                         "a new run dir; put its config.json back and resume it, or choose another --run-dir")
-
-
 def cmd_train(args) -> int:
+    from pizero_ray import api
+
     config = train_config(args)
     run_path = rundir.resolve(args.run_dir)
-    rundir.check_location(run_path)
-    _refuse_a_run_dir_with_a_run(run_path)
     # With a wall-clock budget and no iteration target, the budget alone says when to stop.
     iterations = args.iterations or (None if args.minutes else DEFAULT_ITERATIONS)
     options = run_options(args, iterations, config=config)
-    _check_fits(config, options)
-    with writer_lock.hold(run_path):  # one writer per run dir, from its first file on
-        _refuse_a_run_dir_with_a_run(run_path)  # again: another `pizero train` may have got there first
-        rundir.write_config(run_path, config)  # the last steps before training: all input was valid
-        rundir.write_schedule(run_path, options.schedule())
-        return _run_training(run_path, config, options, args.no_progress)
+    api.check_new_run(run_path, config, options)  # before the progress lines: a refusal is the only line
+    return _run_training(run_path, options, args.no_progress,
+                         lambda on_start, on_iteration: api.start_run(run_path, config, options, on_start,
+                                                                      on_iteration))
 
 
 def cmd_resume(args) -> int:
+    from pizero_ray import api
     from pizero_ray.storage import runs
 
     run_path = existing_run(args.run_dir, env_trust(args))
@@ -230,8 +195,9 @@ def cmd_resume(args) -> int:
         runs.check_same_config(run_path, config)  # before anything is written (the driver checks it again)
         if not _say_where_the_run_stands(run_path, options):
             return 0
-    with writer_lock.hold(run_path):  # refused, before writing anything, while another process trains the run
-        return _run_training(run_path, config, options, args.no_progress)
+    return _run_training(run_path, options, args.no_progress,
+                         lambda on_start, on_iteration: api.continue_run(run_path, config, options, on_start,
+                                                                         on_iteration))
 
 
 def _say_where_the_run_stands(run_path: Path, options) -> bool:
@@ -268,7 +234,9 @@ def cmd_chaos(args) -> int:
         raise UsageError(f"chaos compares two runs of the same iterations; --minutes {args.minutes:g} would cut "
                          "them at different points")
     options = run_options(args, args.iterations or 10, config=config)
-    _check_fits(config, options)
+    from pizero_ray import footprint, methods
+
+    footprint.check_fits(config, methods.make_env(config), options.eval_episodes)
     report = chaos.compare_runs(
         base, config, options, kills=args.kills, seed=args.chaos_seed,
         on_run=lambda name, path: print(f"pizero chaos: {name} run in {path}", file=sys.stderr, flush=True))

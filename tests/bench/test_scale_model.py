@@ -9,13 +9,16 @@ COSTS = scale_model.UnitCosts(driver_per_chunk_s=1e-3, bytes_per_s=1e9, put_byte
 
 
 def test_a_rollout_that_outlasts_the_driver_runs_at_the_efficiency_of_its_fixed_costs():
-    # 8 workers, 16 chunks of 100 pairs at 1,000 steps/s: 4 s of rollout, 16 ms of chunk handling.
+    # 8 workers, 16 chunks of 100 pairs at 1,000 steps/s: seconds of rollout against milliseconds of handling.
     row = scale_model.iteration(COSTS, "a_parts_on_workers", 8, 16, 100, 1000, 1000.0)
-    assert row["compute_s"] == pytest.approx(16 * 100 * 20 / 8000)
-    update = 16 * (4000 / 1e9 + 1e-6) + 1e-4
-    broadcast = 4000 / 4e9 + 1 * 4000 / 1e9  # one node
-    assert row["iteration_s"] == pytest.approx(4.0 + update + broadcast)
-    assert row["bytes_to_driver"] == 16 * 100 * 8 + 16 * 4000 and row["bytes_to_workers"] == 4000
+    assert row["compute_s"] > 100 * (row["iteration_s"] - row["compute_s"])  # the rollout is nearly all of it
+    assert 0.99 < row["efficiency"] < 1.0
+    twice = scale_model.iteration(COSTS, "a_parts_on_workers", 16, 16, 100, 1000, 1000.0)
+    assert twice["compute_s"] == pytest.approx(row["compute_s"] / 2)  # twice the workers, half the rollout
+    # Parts come back: each chunk's part is a parameter vector, against 8 bytes of scores a pair.
+    longer = scale_model.iteration(COSTS, "a_parts_on_workers", 8, 16, 200, 1000, 1000.0)
+    assert longer["bytes_to_driver"] - row["bytes_to_driver"] == 16 * 100 * 8  # only the scores grow
+    assert row["bytes_to_workers"] == twice["bytes_to_workers"] // 2  # the parameters once per node
 
 
 def test_the_driver_bounds_an_iteration_once_it_hands_out_chunks_slower_than_workers_eat_them():
@@ -30,11 +33,12 @@ def test_the_driver_bounds_an_iteration_once_it_hands_out_chunks_slower_than_wor
 
 def test_replayed_updates_move_only_scores_and_pay_the_whole_update_on_every_worker():
     row = scale_model.iteration(COSTS, "b_replayed", 16, 32, 100, 10_000, 1000.0)
-    assert row["bytes_to_workers"] == 2 * 32 * 100 * 8  # two nodes of 8, the scores each
     on_driver = scale_model.iteration(COSTS, "a_parts_on_driver", 16, 32, 100, 10_000, 1000.0)
-    assert row["bytes_to_workers"] < on_driver["bytes_to_workers"] == 2 * 40_000
-    every_part, adam_at_10k = 32 * 100 * 1e-4, 1e-4 * 10  # 1e-4 s a pair at 10,000 parameters; Adam linear in D
-    assert row["iteration_s"] - row["compute_s"] == pytest.approx(every_part + adam_at_10k + 2 * 32 * 100 * 8 / 1e9)
+    assert row["bytes_to_workers"] < on_driver["bytes_to_workers"]  # scores, not parameters
+    bigger = scale_model.iteration(COSTS, "b_replayed", 16, 32, 100, 100_000, 1000.0)
+    assert bigger["bytes_to_workers"] == row["bytes_to_workers"]  # whatever the parameter count
+    assert bigger["update_s"] > 5 * row["update_s"]  # but every worker pays the update, growing with it
+    assert row["driver_s"] < on_driver["driver_s"]  # which the driver does not
 
 
 def test_per_parameter_costs_grow_linearly_beyond_the_largest_measured():

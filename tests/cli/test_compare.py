@@ -11,11 +11,10 @@ import pytest
 
 from pizero_ray import methods
 from pizero_ray.cli import main
-from pizero_ray.cli.arguments import UsageError
-from pizero_ray.cli.compare import check_same_episodes, compare_runs, environment, text_report
-from pizero_ray.cli.evaluate import evaluate_run
-from pizero_ray.config import build_config
+from pizero_ray.cli.compare import text_report
+from pizero_ray.config import ConfigError, build_config
 from pizero_ray.es import population
+from pizero_ray.evaluation.runs import check_same_episodes, compare_runs, environment, evaluate_run
 from pizero_ray.storage import checkpoints, run_dir, runs
 
 CONFIG = build_config("tiny", env="tsp", planner="none", population=16, chunk_size=16)
@@ -122,7 +121,7 @@ def test_a_baseline_on_discretised_actions_plays_pizeros_episodes(tmp_path):
     assert (environment(pizero.config), environment(alphazero.config)) == ("flp view=grid", "flp view=flat")
     check_same_episodes(pizero, alphazero, (paths["pizero"], paths["alphazero"]), 16, 0)  # no error
     longer = alphazero._replace(env=alphazero.env._replace(spec=alphazero.env.spec._replace(horizon=4)))
-    with pytest.raises(UsageError, match="play different episodes"):  # the check can tell: another horizon
+    with pytest.raises(ConfigError, match="play different episodes"):  # the check can tell: another horizon
         check_same_episodes(pizero, longer, (paths["pizero"], paths["alphazero"]), 16, 0)
 
 
@@ -194,7 +193,7 @@ def planners_here(tmp_path_factory):
 
 
 def test_a_run_paired_with_its_own_plan_ablation(planners_here):
-    from pizero_ray.cli.compare import Search
+    from pizero_ray.evaluation.runs import Search
 
     blind = compare_runs(planners_here["state"], planners_here["state"], 16, 0, search_b=Search(plan="shuffled"))
     assert blind["mean_difference"] == 0.0 and blind["share_tied"] == 1.0  # a decoder that cannot read the plan

@@ -9,8 +9,8 @@ import pytest
 from PIL import Image
 
 from pizero_ray.cli import caption, main, render, states
-from pizero_ray.cli.evaluate import evaluate_run
 from pizero_ray.config import ConfigError, build_config
+from pizero_ray.evaluation.runs import evaluate_run
 from pizero_ray.storage import run_dir
 
 

@@ -20,8 +20,13 @@ def test_canvas_is_the_board_below_the_header_with_the_text_in_the_header():
     assert tuple(np.asarray(image)[HEADER.height, 0]) == (0, 255, 0)
 
 
-def test_font_is_loaded_once_per_size():
-    assert font(14) is font(14) and font(14) is not font(22)
+def test_the_header_font_is_drawn_at_the_size_asked_for():
+    heights = {}
+    for size in (14, 22):
+        _, top, _, bottom = ImageDraw.Draw(canvas_with_header(200, 1, "white", HEADER, "")[0]).textbbox(
+            (0, 0), "Hg", font=font(size))
+        heights[size] = bottom - top
+    assert 12 <= heights[14] < heights[22] <= 26  # the glyphs span about the size in pixels
 
 
 # the longest header each renderer writes: the text is drawn before the board, so it must not reach into it

@@ -526,8 +526,6 @@ def test_a_pool_that_lost_its_last_worker_waits_the_worker_wait_from_the_loss_th
     one line saying how long it has had no live worker and what the cluster has."""
     import time
 
-    import numpy as np
-
     from pizero_ray.trainer.options import PoolOptions
     from pizero_ray.trainer.pool import TrainingError
 

@@ -1,17 +1,28 @@
-"""Evaluating the unperturbed agent of a run dir on fresh episodes."""
+"""Evaluating saved runs: a run's agent on fresh episodes, what its plan is worth, two runs on the same episodes.
+
+Episode i of seed S starts from reset key i of ``episode_reset_keys(PRNGKey(S),
+n)``: every run on the same environment plays the same instances for the same
+seed, so two runs (or a run and its own ablation) pair episode by episode, and
+``paired`` compares them. Runs of any method compare on one environment: two
+runs play the same episodes when their environments reset to the same states
+for the same keys and end at the same horizon, so parameters that change only
+what an agent observes (a view, an encoding) may differ. No Ray: a run is read
+through storage.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from pizero_ray.config import ConfigError
 
 if TYPE_CHECKING:
+    from pizero_ray.config import Config
     from pizero_ray.methods import LoadedRun
 
 
@@ -114,3 +125,70 @@ def plan_ablation(intact: LoadedRun, ablation: str, episodes: int, seed: int, ab
     return {"intact_mean_score": paired.mean_b, "plan_difference": paired.mean_difference,
             "plan_difference_ci95": list(paired.interval), "share_episodes_unchanged": paired.tied,
             "share_actions_changed": float(changed)}
+
+
+def environment(config: Config) -> str:
+    """The run's environment as its command line names it: ``tsp``, ``collect view=centred``."""
+    return " ".join([config.env, *(f"{key}={value}" for key, value in sorted(config.env_kwargs().items()))])
+
+
+def check_same_episodes(run_a: LoadedRun, run_b: LoadedRun, paths: tuple[Path, Path], episodes: int, seed: int) -> None:
+    """A one-line error naming both runs unless both environments start every episode from the same state and
+    play to the same horizon."""
+    import jax
+    import numpy as np
+
+    from pizero_ray.agent.episodes import episode_reset_keys
+
+    same = run_a.config.env == run_b.config.env and run_a.env.spec.horizon == run_b.env.spec.horizon
+    if same:
+        keys = episode_reset_keys(jax.random.PRNGKey(seed), episodes)
+        states_a, states_b = (jax.vmap(run.env.reset)(keys)[0] for run in (run_a, run_b))
+        leaves_a, tree_a = jax.tree.flatten(states_a)
+        leaves_b, tree_b = jax.tree.flatten(states_b)
+        same = tree_a == tree_b and all(np.array_equal(a, b) for a, b in zip(leaves_a, leaves_b))
+    if not same:
+        raise ConfigError(f"{paths[0]} ({environment(run_a.config)}) and {paths[1]} ({environment(run_b.config)}) "
+                         "play different episodes: compare runs on the same environment")
+
+
+class Search(NamedTuple):
+    """How one side's agent searches, if not as trained: another budget, or an ablated plan."""
+
+    simulations: int | None = None
+    plan: str | None = None
+
+
+AS_TRAINED = Search()  # the run's own budget, its plan intact
+
+
+def compare_runs(path_a: Path, path_b: Path, episodes: int, seed: int, trust_env: bool | str = False,
+                 search_a: Search = AS_TRAINED, search_b: Search = AS_TRAINED, env_args: dict | None = None,
+                 playing=contextlib.nullcontext) -> dict:
+    """Both runs' unperturbed agents on the episodes of ``seed``, and their paired comparison; ``trust_env`` as
+    for ``methods.load_run``, for both; ``search_a``/``search_b`` change how a side searches (the same run on both
+    sides, one ablated: what its plan or its budget is worth); ``env_args`` override both runs' environment
+    parameters (Sokoban's valid levels, say); ``playing()`` a context around the playing, once both are loaded."""
+    from pizero_ray import methods
+    from pizero_ray.evaluation.paired import compare_scores
+
+    if (search_a.plan or search_b.plan) and episodes < 2:
+        raise ConfigError("the plan ablation swaps plans between episodes: --episodes must be at least 2")
+    run_a, run_b = (methods.with_search(methods.load_run(path, env_args, trust_env), *search)
+                    for path, search in ((path_a, search_a), (path_b, search_b)))
+    check_same_episodes(run_a, run_b, (path_a, path_b), episodes, seed)
+    result = {}
+    for name, path, run, search in (("a", path_a, run_a, search_a), ("b", path_b, run_b, search_b)):
+        result.update({f"run_{name}": str(path), f"method_{name}": run.config.method,
+                       f"planner_{name}": run.config.planner,  # the baselines search with it too
+                       f"simulations_{name}": run.config.num_simulations if run.config.planner != "none" else 0,
+                       f"plan_{name}": search.plan or "intact",
+                       f"env_{name}": environment(run.config),
+                       f"iteration_{name}": run.iteration})
+    with playing():
+        paired = compare_scores(episode_scores(run_a, episodes, seed)[0], episode_scores(run_b, episodes, seed)[0],
+                                seed=seed)
+    return {**result, "episodes": episodes, "seed": seed, "mean_score_a": paired.mean_a,
+            "mean_score_b": paired.mean_b, "mean_difference": paired.mean_difference,
+            "ci95": list(paired.interval), "share_a_higher": paired.a_higher, "share_tied": paired.tied,
+            "share_b_higher": paired.b_higher}
