@@ -20,7 +20,7 @@ GRADIENT_METHODS = ("alphazero", "muzero")  # trained by gradients on self-play,
 PLANNERS = ("muzero", "gumbel", "none")
 DECODERS = ("pointer", "flat")
 DECODER_INPUTS = ("state", "action", "visits", "value")
-FITNESS_SHAPINGS = ("centered_ranks", "none")
+FITNESS_SHAPINGS = ("centered_ranks", "difference_ranks", "none")
 ACTION_SELECTIONS = ("argmax", "sample")
 SIMULATOR_RANDOMNESS = ("sampled", "foreseen")
 EPISODE_LOOPS = ("until_done", "horizon")
@@ -109,8 +109,16 @@ class Config:
     lr_decay_iterations: int = setting(
         0, flag="--lr-decay-iterations",
         help="ES: cosine decay of --lr to 0 over this many iterations, then 0 (0: a constant step size)")
-    fitness_shaping: str = setting("centered_ranks", flag="--fitness-shaping", choices=FITNESS_SHAPINGS,
-                                   help="how scores become weights")
+    fitness_shaping: str = setting(
+        "centered_ranks", flag="--fitness-shaping", choices=FITNESS_SHAPINGS,
+        help="how scores become weights: centered_ranks of all 2N scores; difference_ranks: each pair's "
+             "f(+) - f(-), ranked by size with its sign (blind to how hard the pair's episodes were, and to scale); "
+             "none: the raw scores")
+    # Common random numbers across the population: every pair plays the same episodes (new ones each
+    # iteration), so a pair's difference is the perturbation's effect on those episodes, not on easier ones.
+    common_episodes: bool = setting(
+        False, flag="--common-episodes",
+        help="every pair of an iteration plays the same episodes (default: each pair its own)")
     chunk_size: int = setting(32, flag="--chunk-size",
                               help="pairs per unit of work (divides the population); fixed so results never "
                                    "depend on the workers")

@@ -21,7 +21,7 @@ from typing import Any
 # (the gradient's unit and order of summation); two launches an iteration, so that two workers sharing a GPU
 # each have one. Run it as
 #   pizero train --preset gpu --workers 1 --gpus-per-worker 1
-# Sized from that one measurement, not yet measured itself (issue 46's device run will).
+# Sized from that one measurement, not yet measured itself (make device-run measures it on a GPU).
 _GPU_SIZED: dict[str, Any] = {"population": 16384, "chunk_size": 256, "chunks_per_launch": 32}
 
 # "default" is what learns best on a 2-core machine (see docs/tsp.md); "paper" is the paper's table. Its
@@ -146,7 +146,7 @@ METHOD_PRESETS: dict[str, dict[str, Any]] = {
 # the grid view and the decay of the ES agents' default are not measured for them.
 _FLP_AS_MEASURED = {"weight_decay": 0.0, "env_args": {"view": "flat"}}
 # Both baselines on 2048 self-play the 200-move games with log2 tiles they were measured with (the ES agents'
-# default since 2026-12-02 is 1,000 moves with one-hot tiles).
+# default is 1,000 moves with one-hot tiles).
 _SHORT_LOG2_GAMES = {"env_args": {"horizon": 200, "tile_encoding": "log2"}}
 METHOD_ENV_PRESETS: dict[tuple[str, str], dict[str, Any]] = {
     ("alphazero", "tsp"): {"num_simulations": 32},

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""`make device-run`: does the GPU pay? One prepared run of about 8 minutes on one NVIDIA GPU (issue 46).
+"""`make device-run`: does the GPU pay? One prepared run of about 8 minutes on one NVIDIA GPU.
 
 Default run, each step with its own deadline (a share of what is left of ``--budget-s``), the report saved
 after every step into OUT/<date>-device-run-<gpu kind>.json, so a run cut off keeps what it measured:

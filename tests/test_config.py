@@ -55,19 +55,19 @@ OLD_DEFAULTS = {
     "pb_c_base": 19652.0, "pb_c_init": 1.25, "perturbation_rank": 0, "planner": "muzero", "population": 256,
     "root_noise": 0.0, "seed": 0, "sigma": 0.1, "episodes_per_member": 1, "weight_decay": 0.0,
 }
-# Settings issue 12 added (the method, and the gradient-trained baselines'): an ES run's are these defaults.
+# The method, and the gradient-trained baselines' settings: an ES run's are these defaults.
 OLD_DEFAULTS.update({"method": "pizero", "selfplay_episodes": 32, "updates_per_iteration": 8, "batch_size": 128,
                      "replay_size": 256, "unroll_steps": 5, "action_grid": 16})
 OLD_DEFAULTS["init_from"] = None  # --init-from (a curriculum's next stage): none by default
-# AlphaZero's search redraws 2048's tiles and Pac-Man's ghosts (until 2026-12-01 it foresaw the game's own).
-OLD_DEFAULTS["simulator_randomness"] = "sampled"
+OLD_DEFAULTS["simulator_randomness"] = "sampled"  # AlphaZero's search redraws 2048's tiles and Pac-Man's ghosts
 OLD_DEFAULTS["lr_decay_iterations"] = 0  # a constant step size unless asked
-# How the rollout's loops are compiled (issue 46): the same scores either way; mctx's loops by default.
+# How the rollout's loops are compiled: the same scores either way; mctx's loops by default.
 OLD_DEFAULTS.update({"episode_loop": "until_done", "simulation_loop": "fori"})
-OLD_DEFAULTS["chunks_per_launch"] = 1  # a worker's device call: one chunk unless asked (issue 46)
-# The default preset's rank-1 noise (issue 14: at least as good as full rank on every environment at equal time).
+OLD_DEFAULTS["chunks_per_launch"] = 1  # a worker's device call: one chunk unless asked
+OLD_DEFAULTS["common_episodes"] = False  # each pair its own episodes unless asked
+# The default preset's rank-1 noise (at least as good as full rank on every environment at equal time).
 DEFAULT = {"perturbation_rank": 1}
-# The paper preset played 5 episodes per member until issue 14: the paper's "Trials: 5" are 5 runs.
+# The paper's preset; its "Trials: 5" are 5 independent runs, not episodes per member.
 PAPER = {"chance_outcomes": 3, "chunk_size": 40, "learning_rate": 0.001, "population": 1000}
 TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "num_abstract_actions": 2,
         "num_simulations": 2, "population": 4}

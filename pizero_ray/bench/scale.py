@@ -181,9 +181,9 @@ def _fault_run(workers: int, iterations: int, schedule: frozenset) -> dict:
 COST_PARAMETERS = (54_279, 1_000_000, 10_000_000, 100_000_000)  # the bench agent's, then 1M to 100M
 PART_PAIRS = 32  # a chunk's pairs where its part is timed; the model scales the part with its chunk's pairs
 MODEL_WORKERS = (8, 64, 512)
-MODEL_PAIRS_PER_CHUNK = (1024, 32_768)  # a GPU worker's device call: a thousand pairs (issue 46), and 32 times that
+MODEL_PAIRS_PER_CHUNK = (1024, 32_768)  # a GPU worker's device call: a thousand pairs, and 32 times that
 MODEL_CHUNKS_PER_WORKER = 2
-GPU_RATE = 1_000_000  # agent-steps/s per GPU worker: issue 46's target
+GPU_RATE = 1_000_000  # agent-steps/s per GPU worker: the GPU target (docs/performance.md)
 MODEL_DESIGNS = ("a_parts_on_driver", "a_parts_on_workers", "a_node_sums", "b_replayed")
 SATURATION_PAIRS = (32, 1024, 32_768)
 

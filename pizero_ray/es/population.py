@@ -96,10 +96,13 @@ def make_pair_scorer(config: Config, env: Environment, layout: FlatParams):
 
     ``noise`` is the pairs' noise as ``es.gradient_parts(...).noise`` makes it
     for the chunk; the episodes each pair plays still come from (iteration
-    seed, pair index) alone.
+    seed, pair index) alone, or with ``common_episodes`` from the iteration
+    seed alone: the same for every pair, new every iteration.
     """
     agent, sigma, episodes = make_agent(config, env.spec), config.sigma, config.episodes_per_member
     until_all_done = config.episode_loop == "until_done"
+    # Whose episodes a pair plays: its own (from its index), or with common_episodes pair 0's, every pair alike.
+    episodes_of = (lambda pair_index: jnp.zeros_like(pair_index)) if config.common_episodes else (lambda i: i)
 
     def member_score(theta: jax.Array, episode_key: jax.Array) -> jax.Array:
         return jnp.mean(run_episodes(agent, layout.unravel(theta), env, episode_key, episodes, until_all_done))
@@ -109,7 +112,7 @@ def make_pair_scorer(config: Config, env: Environment, layout: FlatParams):
         return jnp.mean(run_episodes(agent, params, env, episode_key, episodes, until_all_done))
 
     def pair_scores(theta: jax.Array, key: jax.Array, pair_index: jax.Array, noise: jax.Array) -> jax.Array:
-        episode_key = es_noise.pair_episode_key(key, pair_index)  # both halves see the same episodes
+        episode_key = es_noise.pair_episode_key(key, episodes_of(pair_index))  # both halves see the same episodes
         if layout.perturbation.rank > 0:
             steps = jnp.array([sigma, -sigma], jnp.float32)
             return jax.vmap(low_rank_member_score, in_axes=(None, None, 0, None))(theta, noise, steps, episode_key)

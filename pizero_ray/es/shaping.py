@@ -50,8 +50,31 @@ def finite_scores(x: jax.Array, valid: jax.Array | None = None) -> jax.Array:
     return jnp.where(finite, x, jnp.where(jnp.isfinite(lowest), lowest, 0.0))
 
 
+def signed_difference_ranks(scores: jax.Array, valid: jax.Array | None = None) -> jax.Array:
+    """Per pair, sign(d) times the rank of |d| among the pairs, scaled to (0, 1]: d = f(+) - f(-).
+
+    A pair's weight depends only on how its two members compare, not on how
+    hard its episodes were (ranks of all 2N scores let an easy pair outweigh a
+    hard one), and not on the scores' scale. A tied pair weighs 0; tied |d|
+    share their average rank. A score that is not finite counts as the lowest
+    (``finite_scores``).
+    """
+    valid = jnp.ones(scores.shape[:1], bool) if valid is None else valid
+    finite = finite_scores(scores, valid[:, None])
+    difference = (finite[:, 0] - finite[:, 1]).astype(jnp.float32)
+    size = jnp.where(valid, jnp.abs(difference), jnp.inf)  # pairs not valid rank last
+    ordered = jnp.sort(size)
+    first = jnp.searchsorted(ordered, size, side="left")
+    last = jnp.searchsorted(ordered, size, side="right") - 1
+    ranks = (first + last).astype(jnp.float32) / 2.0 + 1.0  # 1 .. n, ties averaged
+    count = jnp.maximum(jnp.sum(valid), 1).astype(jnp.float32)
+    return jnp.where(valid, jnp.sign(difference) * ranks / count, 0.0)
+
+
 def pair_weights(scores: jax.Array, fitness_shaping: str, valid: jax.Array | None = None) -> jax.Array:
     """Per-pair weight w_i from scores [n, 2] (columns: +z, -z); 0 for pairs not ``valid``."""
+    if fitness_shaping == "difference_ranks":
+        return signed_difference_ranks(scores, valid)
     pair_valid = None if valid is None else valid[:, None]
     if fitness_shaping == "centered_ranks":
         shaped = centered_ranks(scores, pair_valid)

@@ -47,6 +47,17 @@ def test_both_halves_of_a_pair_play_the_same_episodes(tsp_env):
     assert scores[0, 0] != scores[1, 0]
 
 
+def test_with_common_episodes_every_pair_plays_the_same_episodes_new_each_iteration(tsp_env):
+    # A vanishing sigma: every member acts as theta does, so equal scores show equal instances.
+    config = build_config("tiny", sigma=1e-9, population=4, chunk_size=4, common_episodes=True)
+    scores = pair_scorer(config, tsp_env)[1]
+    first = scores(5)
+    np.testing.assert_array_equal(first, np.full_like(first, first[0, 0]))
+    assert scores(6)[0, 0] != first[0, 0]  # another iteration, other episodes
+    own = pair_scorer(build_config("tiny", sigma=1e-9, population=4, chunk_size=4), tsp_env)[1](5)
+    assert own[0, 0] == first[0, 0] and len(set(own[:, 0])) > 1  # pair 0's episodes, which the others share
+
+
 def test_flat_parameters_round_trip(tiny_config, tsp_env):
     theta, layout = population.flat_params(tiny_config, tsp_env)
     assert theta.dtype == jnp.float32 and theta.shape == (layout.size,)

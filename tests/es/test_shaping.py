@@ -77,3 +77,26 @@ def test_raw_scores_count_a_non_finite_one_as_the_lowest_finite_score():
     assert np.isfinite(weights).all()
     all_broken = np.asarray(es.pair_weights(jnp.full((3, 2), np.nan), "none"))
     np.testing.assert_array_equal(all_broken, np.zeros(3))  # nothing to learn from: no step
+
+
+def test_difference_ranks_see_each_pairs_comparison_not_its_episodes_difficulty():
+    from pizero_ray.es.shaping import pair_weights
+
+    scores = np.array([[5.0, 4.0], [-10.0, -7.0], [100.0, 100.0], [0.5, 0.0]], np.float32)
+    weights = np.asarray(pair_weights(scores, "difference_ranks"))
+    # d = +1, -3, 0, +0.5: signs kept, |d| ranked 1..4 (0 < 0.5 < 1 < 3), scaled by the pairs
+    np.testing.assert_allclose(weights, [3 / 4, -4 / 4, 1 / 4 * 0, 2 / 4])
+    harder = scores + np.array([[1000.0], [-50.0], [3.0], [-2.0]], np.float32)  # each pair's episodes easier/harder
+    np.testing.assert_array_equal(np.asarray(pair_weights(harder, "difference_ranks")), weights)
+    np.testing.assert_array_equal(np.asarray(pair_weights(scores * 1000.0, "difference_ranks")), weights)
+    centred = np.asarray(pair_weights(harder, "centered_ranks"))
+    assert not np.array_equal(centred, np.asarray(pair_weights(scores, "centered_ranks")))  # which ranks all 2N
+
+
+def test_difference_ranks_weigh_pairs_not_valid_and_broken_scores_as_documented():
+    from pizero_ray.es.shaping import pair_weights
+
+    scores = np.array([[1.0, 0.0], [np.nan, 2.0], [3.0, 1.0]], np.float32)
+    weights = np.asarray(pair_weights(scores, "difference_ranks", valid=np.array([True, True, False])))
+    assert weights[2] == 0.0  # not valid: no weight
+    assert weights[1] < 0 < weights[0]  # NaN counts as the lowest score: its member lost
