@@ -14,6 +14,8 @@ render_results = load_script("render_results")
 
 EXPECTED_BLOCKS = {
     "README.md": {"results"},
+    "docs/learning.md": {"scores", "paired", "hand"},
+    **{f"docs/{page}.md": {"current-best"} for page in ("tsp", "collect", "sokoban")},
 }
 
 
