@@ -15,7 +15,8 @@ render_results = load_script("render_results")
 EXPECTED_BLOCKS = {
     "README.md": {"results"},
     "docs/learning.md": {"scores", "paired", "hand"},
-    **{f"docs/{page}.md": {"current-best"} for page in ("tsp", "collect", "sokoban")},
+    "docs/baselines.md": {"baselines"},
+    **{f"docs/{page}.md": {"current-best"} for page in ("tsp", "collect", "sokoban", "2048", "flp", "pacman")},
 }
 
 
