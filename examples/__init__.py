@@ -1,2 +1,2 @@
-"""Environments of your own, written against the protocol (envs.base) and named by import path: user code,
-not registered in ``envs``. docs/your-environment.md walks through ``examples/corridor.py``."""
+"""Environments of your own, written against the protocol (pizero_ray.envs.base) and named by import path: user code,
+not registered in ``pizero_ray.envs``. docs/your-environment.md walks through ``examples/corridor.py``."""

@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, require_int
+from pizero_ray.envs.base import Environment, EnvSpec, Observation, require_int
 
 LEFT, RIGHT = 0, 1
 NUM_ACTIONS = 2

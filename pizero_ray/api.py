@@ -149,7 +149,7 @@ class TrainedAgent:
     observations (``env.reset``/``env.step`` under ``jax.vmap``)."""
 
     config: Config
-    env: Any  # envs.base.Environment
+    env: Any  # pizero_ray.envs.base.Environment
     iteration: int
     params: Any  # the agent's parameter pytree
     agent: Any  # pizero_ray.agent.Agent, or a baseline's

@@ -41,7 +41,7 @@ class ConfigError(ValueError):
 
 
 def _env_names() -> tuple[str, ...]:
-    from envs import ENV_NAMES  # local: keeps config importable without JAX set up
+    from pizero_ray.envs import ENV_NAMES  # local: keeps config importable without JAX set up
 
     return ENV_NAMES
 
@@ -212,8 +212,8 @@ class Config:
 
     def _validate_env(self) -> None:
         """A registered name, or an import path module:factory (its module is imported when the env is built)."""
-        import envs
-        from envs import import_path
+        from pizero_ray import envs
+        from pizero_ray.envs import import_path
 
         if envs.is_import_path(self.env):
             try:

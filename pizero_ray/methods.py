@@ -16,17 +16,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from envs.base import Environment
 from pizero_ray.config import Config, ConfigError
+from pizero_ray.envs.base import Environment
 from pizero_ray.es.population import FlatParams
 from pizero_ray.storage import checkpoints
 from pizero_ray.storage import run_dir as rundir
 
 
 def make_env(config: Config, **env_args) -> Environment:
-    """The environment a run's method acts in: the baselines see continuous actions as a grid (envs.discretised)."""
-    import envs
-    from envs.discretised import discretise
+    """The environment a run's method acts in: the baselines see continuous actions as a grid
+    (pizero_ray.envs.discretised)."""
+    from pizero_ray import envs
+    from pizero_ray.envs.discretised import discretise
 
     try:  # a bad parameter, or an environment of your own that cannot be imported or breaks the protocol
         env = envs.make(config.env, **{**config.env_kwargs(), **env_args})

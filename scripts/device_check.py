@@ -52,7 +52,7 @@ import json, jax, numpy as np
 from pizero_ray import es
 from pizero_ray.es import population
 from pizero_ray.config import build_config
-import envs
+from pizero_ray import envs
 config = build_config("default", env="tsp")
 _, layout = population.flat_params(config, envs.make("tsp"))
 parts = es.gradient_parts(config, layout.perturbation)

@@ -26,9 +26,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from envs import flp  # noqa: E402
 from pizero_ray import methods  # noqa: E402
 from pizero_ray.agent import episodes as play  # noqa: E402
+from pizero_ray.envs import flp  # noqa: E402
 
 
 def placement_score(facilities: np.ndarray, clients: np.ndarray, objective: str) -> np.ndarray:

@@ -72,7 +72,7 @@ def tiny_config():
 
 @pytest.fixture(scope="session")
 def tsp_env():
-    import envs
+    from pizero_ray import envs
 
     return envs.make("tsp")
 

@@ -188,7 +188,7 @@ def test_an_env_is_a_registered_name_or_an_import_path(env, message):
 
 
 def test_environment_presets_name_real_environments_and_presets():
-    import envs
+    from pizero_ray import envs
 
     assert set(ENV_PRESETS) <= set(envs.ENV_NAMES)
     assert all(set(by_preset) <= set(PRESETS) for by_preset in ENV_PRESETS.values())
@@ -198,7 +198,7 @@ def test_environment_presets_name_real_environments_and_presets():
 
 
 def test_the_gpu_preset_keeps_each_environments_default_at_a_device_sized_population():
-    import envs
+    from pizero_ray import envs
 
     for env in envs.ENV_NAMES:
         config = build_config("gpu", env=env)  # validates

@@ -15,7 +15,7 @@ MATH = ["pizero_ray.config", "pizero_ray.settings", "pizero_ray.presets",
         "pizero_ray.es.noise", "pizero_ray.es.shaping", "pizero_ray.es.strategy", "pizero_ray.es.population",
         "pizero_ray.baselines", "pizero_ray.baselines.networks", "pizero_ray.baselines.search",
         "pizero_ray.baselines.replay", "pizero_ray.baselines.losses", "pizero_ray.baselines.learner",
-        "envs", "envs.discretised"]
+        "pizero_ray.envs", "pizero_ray.envs.discretised"]
 
 
 def _compiler_flags() -> dict[str, str]:
@@ -66,7 +66,7 @@ def test_evaluating_a_saved_run_imports_neither_ray_nor_the_trainer(tmp_path):
     code = f"""
 import json, sys
 from pathlib import Path
-import envs
+from pizero_ray import envs
 from pizero_ray.config import build_config
 from pizero_ray import methods
 from pizero_ray.storage import checkpoints, run_dir, runs

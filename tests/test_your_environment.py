@@ -58,7 +58,7 @@ def test_the_trained_example_evaluates_and_renders(trained, tmp_path, capsys):
 
 @pytest.mark.parametrize("env, problem", [
     ("nosuchmodule:make", "environment 'nosuchmodule:make': no module named 'nosuchmodule' in "),
-    ("envs.tsp:nosuchattr", "has no attribute 'nosuchattr'"),
+    ("pizero_ray.envs.tsp:nosuchattr", "has no attribute 'nosuchattr'"),
     ("examples.corridor:", "an import path must read module:factory"),
 ])
 def test_an_environment_that_cannot_be_built_is_one_line_and_writes_nothing(tmp_path, capsys, env, problem):

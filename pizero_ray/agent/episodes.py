@@ -1,6 +1,6 @@
 """Playing whole episodes with an agent's parameters: scores, or every step for a renderer.
 
-The loop itself is ``envs.base.play``, the one every episode in the project is played by.
+The loop itself is ``pizero_ray.envs.base.play``, the one every episode in the project is played by.
 """
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ from typing import Callable, NamedTuple
 
 import jax
 
-from envs.base import Environment, Step, play
 from pizero_ray.agent.networks import Params
 from pizero_ray.agent.pizero import Agent
+from pizero_ray.envs.base import Environment, Step, play
 
 
 def episode_reset_keys(key: jax.Array, num_episodes: int) -> jax.Array:
@@ -32,7 +32,7 @@ class Trajectory(NamedTuple):
 
 def _play(agent: Agent, params: Params, env: Environment, key: jax.Array, num_episodes: int, record: bool,
           until_all_done: bool = True, recorded: Callable[[Step], object] | None = None):
-    """(initial states, final states, scores, recorded steps or None): ``envs.base.play`` with the agent.
+    """(initial states, final states, scores, recorded steps or None): ``pizero_ray.envs.base.play`` with the agent.
 
     Unrecorded episodes stop once all have ended (``until_all_done``), or always play to the horizon: the same
     scores, a loop of unknown or of known length. ``record`` keeps each step's state, action, reward and done;

@@ -18,10 +18,10 @@ from typing import Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from envs.base import EnvSpec, Observation
 from pizero_ray.agent import decoder, networks, planner
 from pizero_ray.agent.planner import PlanResult
 from pizero_ray.config import PLAN_ABLATIONS, Config
+from pizero_ray.envs.base import EnvSpec, Observation
 
 
 class StepInfo(NamedTuple):

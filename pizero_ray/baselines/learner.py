@@ -24,12 +24,12 @@ import jax.numpy as jnp
 import optax
 from jax.flatten_util import ravel_pytree
 
-from envs.base import Environment
 from pizero_ray.agent.pizero import Agent
 from pizero_ray.baselines import losses, replay
 from pizero_ray.baselines.networks import make_model, make_policy_value
 from pizero_ray.baselines.search import make_method_search
 from pizero_ray.config import Config
+from pizero_ray.envs.base import Environment
 
 
 class LearnerState(NamedTuple):

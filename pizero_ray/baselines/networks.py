@@ -19,10 +19,10 @@ from typing import Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from envs.base import EnvSpec, Observation
 from pizero_ray.agent import networks
 from pizero_ray.agent.decoder import pointer_init, pointer_scores
 from pizero_ray.config import Config
+from pizero_ray.envs.base import EnvSpec, Observation
 
 Params = networks.Params
 NEGATIVE_LOGIT = -1e9  # an illegal action's prior: never chosen, nothing of the softmax

@@ -19,8 +19,8 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from envs.base import Environment, Observation, Step
-from envs.base import play as env_play
+from pizero_ray.envs.base import Environment, Observation, Step
+from pizero_ray.envs.base import play as env_play
 
 
 class Episodes(NamedTuple):
@@ -36,7 +36,7 @@ class Episodes(NamedTuple):
 def play(search, params, env: Environment, key: jax.Array, num_episodes: int) -> Episodes:
     """Plays ``num_episodes`` episodes to the horizon, each step chosen by ``search``; returns them batch-major.
 
-    The loop is ``envs.base.play``: once an episode has ended its state stays
+    The loop is ``pizero_ray.envs.base.play``: once an episode has ended its state stays
     where it ended, and the steps after its end (``valid`` False) keep
     whatever the search chose there.
     """

@@ -33,10 +33,10 @@ import jax
 import jax.numpy as jnp
 import mctx
 
-from envs.base import Environment, Observation, where_done
 from pizero_ray.agent import mcts
 from pizero_ray.baselines.networks import Model, PolicyValue, inverse_value_transform
 from pizero_ray.config import Config
+from pizero_ray.envs.base import Environment, Observation, where_done
 
 
 class SimulatorNode(NamedTuple):

@@ -95,7 +95,7 @@ def sweep_row(point: SweepPoint, repeats: int, loops_by_program: dict[str, dict]
 
 def time_population(config: Config, repeats: int) -> dict:
     """The whole population scored on one device in one ``score_many`` call: compile, warm-up, median."""
-    import envs
+    from pizero_ray import envs
     from pizero_ray.es import population
     from pizero_ray.trainer import local_devices
 

@@ -13,7 +13,7 @@ from pizero_ray.config import Config
 def compile_rollout(config: Config, max_devices: int | None = None) -> CompiledRollout:
     """The rollout a worker runs (``local_devices.ChunkScorer``), compiled for this process's devices (or the
     first ``max_devices``), its chunks dealt over them."""
-    import envs
+    from pizero_ray import envs
     from pizero_ray.es import population
     from pizero_ray.trainer import local_devices
 
@@ -62,7 +62,7 @@ def pair_scorer_loops(config: Config) -> dict:
     import jax.numpy as jnp
     from jax.sharding import SingleDeviceSharding
 
-    import envs
+    from pizero_ray import envs
     from pizero_ray.bench import loops
     from pizero_ray.es import population
 

@@ -91,7 +91,7 @@ def _against_stubs(config, options, stubs, on_iteration=None) -> tuple[dict, lis
 
 
 def _parameters(config) -> int:
-    import envs
+    from pizero_ray import envs
     from pizero_ray.es import population
 
     return population.params_layout(config, envs.make(config.env, **config.env_kwargs())).size

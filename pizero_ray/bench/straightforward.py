@@ -11,7 +11,7 @@ member function, jitted once, on one device.
 
 None of the project's speed-ups: no search that skips muzero_policy's
 Dirichlet draw (the planner's, ``agent.mcts``), no low-rank
-noise, no loop that stops once every episode has ended (``envs.base.play``,
+noise, no loop that stops once every episode has ended (``pizero_ray.envs.base.play``,
 as ``agent.episodes`` plays), no chunks dealt over devices, no noise handed
 in from outside the rollout. It plays the trainer's game for the same keys: the
 same instances (reset keys) and the same search and action keys, and a
@@ -29,12 +29,12 @@ import jax.numpy as jnp
 import mctx
 import numpy as np
 
-from envs.base import Environment
 from pizero_ray.agent import decoder, networks, pizero, planner
 from pizero_ray.agent.episodes import episode_reset_keys
 from pizero_ray.agent.planner import PlanResult
 from pizero_ray.bench.timing import CompiledRollout
 from pizero_ray.config import Config
+from pizero_ray.envs.base import Environment
 from pizero_ray.es import noise as es_noise
 from pizero_ray.es.population import FlatParams
 
@@ -109,7 +109,7 @@ def make_population_scorer(config: Config, env: Environment, layout: FlatParams)
 
 def compile_straightforward(config: Config) -> CompiledRollout:
     """The straightforward rollout of ``config``'s population, compiled for the first device and warmed up."""
-    import envs
+    from pizero_ray import envs
     from pizero_ray.es import population
 
     env = envs.make(config.env, **config.env_kwargs())

@@ -58,8 +58,7 @@ def worker_memory(config: Config, cache_dir: str) -> float:
     """Peak resident memory (MB) of one Ray worker actor after evaluating a whole iteration."""
     import ray
 
-    import envs
-    from pizero_ray import es
+    from pizero_ray import envs, es
     from pizero_ray.es import population
     from pizero_ray.trainer import workers
 

@@ -19,8 +19,7 @@ def driver_update(config: Config, repeats: int) -> float:
     """
     import jax
 
-    import envs
-    from pizero_ray import es
+    from pizero_ray import envs, es
     from pizero_ray.es import population
 
     env = envs.make(config.env)

@@ -37,7 +37,7 @@ def format_score(score: float) -> str:
 
 def tsp_measures(state, final: bool) -> str:
     """The tour length so far; on the final frame also the optimum (nearest neighbour past Held-Karp's reach)."""
-    from envs import tsp
+    from pizero_ray.envs import tsp
 
     length = tsp.placed_path_length(state)
     if not final:
@@ -53,7 +53,7 @@ def tsp_measures(state, final: bool) -> str:
 
 def flp_measures(state, objective: str) -> str:
     """The objective of the facilities placed so far: covering radius (max) or mean distance (mean)."""
-    from envs import flp
+    from pizero_ray.envs import flp
 
     placed = np.asarray(state.facilities)[:int(state.t)]
     name = "covering radius" if objective == "max" else "mean distance"

@@ -96,7 +96,7 @@ def cmd_experiment(args) -> int:
 
 def _refuse_untrusted_envs(sittings, trust_env: bool) -> None:
     """An experiment dir is data: the environments it names by import path are imported only with --trust-env."""
-    import envs
+    from pizero_ray import envs
 
     for out, spec in sittings:
         named = [env for env in spec.envs if envs.is_import_path(env)]

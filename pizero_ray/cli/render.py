@@ -12,10 +12,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from envs.base import Environment
 from pizero_ray.agent.episodes import Trajectory
 from pizero_ray.cli import caption
 from pizero_ray.config import ConfigError
+from pizero_ray.envs.base import Environment
 
 FRAME_MS = 350
 

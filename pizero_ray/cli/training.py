@@ -24,6 +24,7 @@ from pizero_ray.config import Config, ConfigError, build_config
 from pizero_ray.presets import PRESETS
 from pizero_ray.settings import lookup
 from pizero_ray.storage import run_dir as rundir
+from pizero_ray.storage import writer_lock
 
 
 def _add_run_options(parser: argparse.ArgumentParser) -> None:
@@ -193,11 +194,12 @@ def cmd_resume(args) -> int:
     rundir.check_location(run_path)
     if not args.restart:
         runs.check_same_config(run_path, config)  # before anything is written (the driver checks it again)
-        if not _say_where_the_run_stands(run_path, options):
+    with writer_lock.hold(run_path):  # refused, in one line, while another process trains the run
+        if not args.restart and not _say_where_the_run_stands(run_path, options):
             return 0
-    return _run_training(run_path, options, args.no_progress,
-                         lambda on_start, on_iteration: api.continue_run(run_path, config, options, on_start,
-                                                                         on_iteration))
+        return _run_training(run_path, options, args.no_progress,
+                             lambda on_start, on_iteration: api.continue_run(run_path, config, options, on_start,
+                                                                             on_iteration))
 
 
 def _say_where_the_run_stands(run_path: Path, options) -> bool:
@@ -213,7 +215,11 @@ def _say_where_the_run_stands(run_path: Path, options) -> bool:
     used = f", {clock(trained_s)} of the {options.minutes:g}-minute budget trained" if options.minutes else ""
     done = ((options.iterations is not None and iteration >= options.iterations)
             or (options.minutes is not None and trained_s >= 60.0 * options.minutes))
-    if done:
+    # Only a checkpoint whose files are as saved ends it here: a damaged one the driver quarantines, and it
+    # trains on from the one before.
+    intact = meta is not None and checkpoints.diagnose(
+        run_path / checkpoints.CHECKPOINT_DIR / str(iteration)).verdict == "intact"
+    if done and intact:
         print(f"pizero: run {run_path} is at iteration {iteration}{used}: nothing to train; give more with "
               f"--iterations or --minutes", file=sys.stderr)
         return False

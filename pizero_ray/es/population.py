@@ -20,11 +20,11 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from envs.base import Environment
 from pizero_ray.agent import make_agent, networks
 from pizero_ray.agent.episodes import run_episodes
 from pizero_ray.agent.networks import Params
 from pizero_ray.config import Config
+from pizero_ray.envs.base import Environment
 from pizero_ray.es import noise as es_noise
 
 

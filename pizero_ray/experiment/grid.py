@@ -53,8 +53,7 @@ class Experiment:
     eval_env_args: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
 
     def __post_init__(self) -> None:
-        import envs as environments
-
+        from pizero_ray import envs as environments
         for env in self.envs:  # a registered name, or an environment of your own by import path module:factory
             if env not in environments.ENV_NAMES and not environments.is_import_path(env):
                 known = ", ".join(environments.ENV_NAMES)
@@ -127,8 +126,7 @@ def check(experiment: Experiment) -> None:
 
     The seed changes neither, so each (env, method) is built once (Sokoban reads its level files each time).
     """
-    import envs as environments
-
+    from pizero_ray import envs as environments
     for trial in [trial for trial in experiment.trials if trial.seed == 0]:
         config = experiment.config(trial)
         for env_args in ({}, dict(dict(experiment.eval_env_args).get(trial.env, ()))):

@@ -109,7 +109,7 @@ def read_trusted_config(run_dir: Path, trust_env: bool | str = False) -> Config:
     environment named by import path imports its module, so a run dir received
     from elsewhere would otherwise be executable input.
     """
-    import envs
+    from pizero_ray import envs
 
     config = read_config(run_dir)
     if envs.is_import_path(config.env) and not (trust_env is True or trust_env == config.env):

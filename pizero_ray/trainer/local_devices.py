@@ -181,8 +181,7 @@ class ChunkScorer:
         import jax.numpy as jnp
         from jax.sharding import SingleDeviceSharding
 
-        import envs
-        from pizero_ray import es
+        from pizero_ray import envs, es
         from pizero_ray.es import population
 
         self.config = config

@@ -5,10 +5,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from envs.base import EnvSpec, Observation
 from pizero_ray.agent import decoder, make_agent
 from pizero_ray.agent.planner import PlanResult
 from pizero_ray.config import DECODER_INPUTS, build_config
+from pizero_ray.envs.base import EnvSpec, Observation
 
 K, LATENT = 3, 5
 PLAN = PlanResult(jnp.array([2, 0]), jnp.array([[0.2, 0.3, 0.5], [1.0, 0.0, 0.0]]), jnp.array([0.7, -1.5]))

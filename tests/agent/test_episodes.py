@@ -15,7 +15,7 @@ def test_run_episodes_scores_every_episode(tiny_config, tsp_env):
 
 
 def test_recorded_episodes_are_the_scored_ones_and_rewards_stop_at_the_end(tiny_config):
-    import envs
+    from pizero_ray import envs
 
     env = envs.make("collect", horizon=6)
     agent = make_agent(tiny_config, env.spec)
@@ -33,7 +33,7 @@ def test_recorded_episodes_are_the_scored_ones_and_rewards_stop_at_the_end(tiny_
 
 
 def test_scoring_stops_once_every_episode_ended_with_the_scans_scores_and_final_states(tiny_config):
-    import envs
+    from pizero_ray import envs
 
     game = envs.make("2048", horizon=400)  # a random-ish player ends every game long before 400 moves
     steps_taken = []

@@ -76,8 +76,8 @@ def test_a_baseline_trains_resumes_and_is_evaluated_rendered_and_inspected(tmp_p
 
 def _assert_final_flp_frame(png):
     """``pizero render``'s PNG of an FLP episode: the final placement drawn, and its caption below it."""
-    from envs import flp
     from pizero_ray.cli import caption
+    from pizero_ray.envs import flp
 
     image = read_rgb(png)
     drawing, strip = image[:flp.SIZE], image[flp.SIZE:]

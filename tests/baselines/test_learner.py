@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-import envs
+from pizero_ray import envs
 from pizero_ray.baselines import losses, make_learner, replay
 from pizero_ray.baselines.networks import make_model
 from pizero_ray.config import build_config

@@ -4,8 +4,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Observation
 from pizero_ray.baselines.replay import Episodes, replay_add, replay_init, replay_sample, returns_to_go
+from pizero_ray.envs.base import Observation
 
 
 def episodes(first_id: int, batch: int, horizon: int = 4, lengths=None) -> Episodes:

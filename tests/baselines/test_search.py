@@ -10,10 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import envs
-from envs.base import Environment, play_policy
-from envs.collect import CollectState
-from envs.tsp import TSPState
+from pizero_ray import envs
 from pizero_ray.baselines.networks import PolicyValue, inverse_value_transform, masked_logits, value_transform
 from pizero_ray.baselines.search import (
     SimulatorNode,
@@ -22,6 +19,9 @@ from pizero_ray.baselines.search import (
     simulator_root,
 )
 from pizero_ray.config import build_config
+from pizero_ray.envs.base import Environment, play_policy
+from pizero_ray.envs.collect import CollectState
+from pizero_ray.envs.tsp import TSPState
 
 
 class SeenObservation(NamedTuple):

@@ -3,7 +3,7 @@
 import jax
 import numpy as np
 
-import envs
+from pizero_ray import envs
 
 
 def count_environment_steps(monkeypatch) -> list[int]:

@@ -8,7 +8,7 @@ header is about 120 bytes, an integer's 15, an object id 28).
 
 import pytest
 
-import envs
+from pizero_ray import envs
 from pizero_ray.bench import trainer
 from pizero_ray.config import build_config
 from pizero_ray.es import population

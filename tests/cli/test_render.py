@@ -44,8 +44,8 @@ def test_annotate_keeps_the_frame_and_adds_a_strip_of_text():
 
 
 def test_measures_of_the_environments_scored_at_the_end():
-    from envs.flp import FLPState
-    from envs.tsp import TSPState
+    from pizero_ray.envs.flp import FLPState
+    from pizero_ray.envs.tsp import TSPState
 
     clients = np.array([[0.0, 0.0], [0.0, 0.4], [1.0, 1.0]])
     facilities = np.array([[0.0, 0.1], [1.0, 0.9]])
@@ -72,7 +72,7 @@ def test_render_png_is_legible_and_captioned(runs, tmp_path):
 
 
 def test_the_caption_says_the_evaluated_episodes_score_and_tour_lengths(runs):
-    from envs import tsp
+    from pizero_ray.envs import tsp
 
     played = render.play(runs["tsp"], episodes=1, seed=3)
     shots = played.episodes[0]

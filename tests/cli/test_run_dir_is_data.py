@@ -63,7 +63,7 @@ def test_naming_the_environment_again_trusts_it(tmp_path, capsys):
     run = _malicious(tmp_path / "run", marker)
     code, err = _run(["inspect", str(run), "--env", "os:system"], capsys)
     assert marker.exists()  # trusted on purpose: the module's code ran (os.system returns no Environment)
-    assert code == 2 and len(err) == 1 and "must return an envs.base.Environment" in err[0], err
+    assert code == 2 and len(err) == 1 and "must return a pizero_ray.envs.base.Environment" in err[0], err
 
 
 def test_naming_another_environment_is_refused(tmp_path, capsys):

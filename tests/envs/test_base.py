@@ -6,8 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import envs
-from envs.base import (
+from pizero_ray import envs
+from pizero_ray.envs.base import (
     centred_window,
     fresh_initial_states,
     mean_reference_metrics,

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from envs import boxoban, sokoban, sokoban_generator
+from pizero_ray.envs import boxoban, sokoban, sokoban_generator
 
 # The real Boxoban files live beside the repository (never copied into it).
 BOXOBAN = Path(__file__).parents[3] / "shared" / "boxoban"

@@ -4,9 +4,9 @@ naming the problem and the environment."""
 import jax.numpy as jnp
 import pytest
 
-import envs
-from envs.check import check_environment
 from examples import corridor
+from pizero_ray import envs
+from pizero_ray.envs.check import check_environment
 
 SMALL = {"sokoban": {"num_levels": 20}}  # fewer levels read: the check is about shapes, not the game
 
@@ -38,11 +38,12 @@ def _python_if_step(env):
 
 BROKEN = {
     "not an Environment": (lambda env: {"reset": env.reset},
-                           "the factory must return an envs.base.Environment, got dict"),
+                           "the factory must return a pizero_ray.envs.base.Environment, got dict"),
     "reset missing": (lambda env: env._replace(reset=None), "reset must be a function, got NoneType"),
     "step not callable": (lambda env: env._replace(step="step"), "step must be a function, got str"),
     "render not callable": (lambda env: env._replace(render=1), "render must be a function or None, got int"),
-    "spec not an EnvSpec": (lambda env: env._replace(spec=tuple(env.spec)), "spec must be an envs.base.EnvSpec"),
+    "spec not an EnvSpec": (lambda env: env._replace(spec=tuple(env.spec)),
+                            "spec must be a pizero_ray.envs.base.EnvSpec"),
     "spec size a string": (lambda env: env._replace(spec=env.spec._replace(observation_size="17")),
                            "spec.observation_size must be an integer at least 1, got '17'"),
     "spec horizon a float": (lambda env: env._replace(spec=env.spec._replace(horizon=16.0)),
@@ -58,7 +59,7 @@ BROKEN = {
                                      "got float32[2,3]"),
     "mask of ints": (lambda env: _resetting(env, lambda o: o._replace(action_mask=o.action_mask.astype(jnp.int32))),
                      "reset's observation.action_mask must be bool[2] (from the spec), got int32[2]"),
-    "observation a tuple": (lambda env: _resetting(env, tuple), "reset must return an envs.base.Observation"),
+    "observation a tuple": (lambda env: _resetting(env, tuple), "reset must return a pizero_ray.envs.base.Observation"),
     "reward not a scalar": (lambda env: _stepping(env, lambda s, o, r, d: (s, o, r[None], d)),
                             "step's reward must be a float scalar (shape ()), got float32[1]"),
     "done not a bool": (lambda env: _stepping(env, lambda s, o, r, d: (s, o, r, d.astype(jnp.float32))),

@@ -6,9 +6,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import envs
-from envs import collect
-from envs.collect import DOWN, LEFT, RIGHT, UP, CollectState
+from pizero_ray import envs
+from pizero_ray.envs import collect
+from pizero_ray.envs.collect import DOWN, LEFT, RIGHT, UP, CollectState
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import envs
-from envs.discretised import discretise, grid_points
+from pizero_ray import envs
+from pizero_ray.envs.discretised import discretise, grid_points
 
 
 def test_grid_points_are_cell_centres():

@@ -6,9 +6,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import envs
-from envs import flp
-from envs.flp import FLPState
+from pizero_ray import envs
+from pizero_ray.envs import flp
+from pizero_ray.envs.flp import FLPState
 
 SQUARE = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
 

@@ -3,9 +3,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import envs
-from envs import game2048
-from envs.base import random_legal_action
+from pizero_ray import envs
+from pizero_ray.envs import game2048
+from pizero_ray.envs.base import random_legal_action
 
 UP, RIGHT, DOWN, LEFT = range(4)
 

@@ -5,8 +5,8 @@ import textwrap
 
 import pytest
 
-import envs
-from envs import import_path
+from pizero_ray import envs
+from pizero_ray.envs import import_path
 
 # A module of the user's, written into the working directory each test runs in (tmp_path).
 FACTORIES = """
@@ -52,10 +52,10 @@ def test_a_malformed_import_path_is_one_line(path):
 
 @pytest.mark.parametrize("factory, problem", [
     ("nosuchmodule_at_all:make", "no module named 'nosuchmodule_at_all' in "),
-    ("envs.nosuchmodule:make", "no module named 'envs.nosuchmodule' in "),
-    ("envs.tsp:nosuchattr", "module envs.tsp ("),
-    ("{user}:value", "value must be a function returning an envs.base.Environment, got int"),
-    ("{user}:not_an_environment", "the factory must return an envs.base.Environment, got str"),
+    ("pizero_ray.envs.nosuchmodule:make", "no module named 'pizero_ray.envs.nosuchmodule' in "),
+    ("pizero_ray.envs.tsp:nosuchattr", "module pizero_ray.envs.tsp ("),
+    ("{user}:value", "value must be a function returning a pizero_ray.envs.base.Environment, got int"),
+    ("{user}:not_an_environment", "the factory must return a pizero_ray.envs.base.Environment, got str"),
 ])
 def test_what_cannot_be_built_is_one_line_naming_the_environment(user_module, factory, problem):
     path = factory.format(user=user_module)
@@ -67,7 +67,7 @@ def test_what_cannot_be_built_is_one_line_naming_the_environment(user_module, fa
 
 def test_a_missing_attribute_is_named():
     with pytest.raises(ValueError, match=r"envs/tsp\.py\) has no attribute 'nosuchattr'$"):
-        envs.make("envs.tsp:nosuchattr")
+        envs.make("pizero_ray.envs.tsp:nosuchattr")
 
 
 def test_bad_env_args_are_one_line_as_for_registered_environments(user_module):

@@ -3,9 +3,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import envs
-from envs import pacman
-from envs.base import random_legal_action
+from pizero_ray import envs
+from pizero_ray.envs import pacman
+from pizero_ray.envs.base import random_legal_action
 
 UP, LEFT, DOWN, RIGHT, NO_OP = range(5)  # in the maze as printed (Jumanji's docs swap the names of 1 and 3)
 START = (23, 13)  # the player's (row, col) at reset

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from PIL import ImageDraw
 
-from envs import collect, game2048, pacman, sokoban
-from envs.rendering import Header, canvas_with_header, font
+from pizero_ray.envs import collect, game2048, pacman, sokoban
+from pizero_ray.envs.rendering import Header, canvas_with_header, font
 
 HEADER = Header(height=22, text_origin=(4, 3), font_size=14, text_colour=(250, 0, 0))
 

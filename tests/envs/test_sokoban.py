@@ -5,8 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import envs
-from envs import boxoban, sokoban
+from pizero_ray import envs
+from pizero_ray.envs import boxoban, sokoban
 
 UP, DOWN, LEFT, RIGHT = range(4)
 

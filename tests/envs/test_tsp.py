@@ -5,8 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import envs
-from envs import tsp
+from pizero_ray import envs
+from pizero_ray.envs import tsp
 
 
 def _distance_matrix(coords):

@@ -109,7 +109,7 @@ import hashlib, os, sys
 if sys.argv[1] == "one-core":
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # before JAX starts: a 1-CPU worker's view
 import numpy as np
-import envs
+from pizero_ray import envs
 from pizero_ray import es
 from pizero_ray.config import build_config
 from pizero_ray.es import population

@@ -81,8 +81,7 @@ def test_flat_parameters_round_trip(tiny_config, tsp_env):
 def test_low_rank_members_play_exactly_theta_plus_the_expanded_noise(tsp_env, env_name, extra):
     # The evaluator never forms a low-rank member's matrices; scoring the
     # formed matrices directly must give the same scores.
-    import envs
-    from pizero_ray import es
+    from pizero_ray import envs, es
 
     config = build_config("tiny", env=env_name, perturbation_rank=2, sigma=0.5, population=3, chunk_size=3, **extra)
     env = tsp_env if env_name == "tsp" else envs.make(env_name)
@@ -113,7 +112,7 @@ def test_the_loops_compiled_do_not_change_the_scores(env_name, extra):
     changes the program's while loops, not one bit of any score."""
     import dataclasses
 
-    import envs
+    from pizero_ray import envs
 
     config = build_config("tiny", env=env_name, population=4, chunk_size=4, **extra)
     env = envs.make(env_name, **config.env_kwargs())

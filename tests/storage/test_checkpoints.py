@@ -174,7 +174,7 @@ def _templates():
     """The run's initial parameters and optimiser state: what a resume restores into."""
     import numpy as np
 
-    import envs
+    from pizero_ray import envs
 
     env = envs.make(CONFIG.env, **CONFIG.env_kwargs())
     state, _, _ = methods.initial_state(CONFIG, env)

@@ -30,7 +30,7 @@ def use(monkeypatch, config, hang_on=None, part_delay_s: float = 0.0, sigterm_on
     import os
     import tempfile
 
-    import envs
+    from pizero_ray import envs
     from pizero_ray.es import population
     from pizero_ray.trainer import workers
 

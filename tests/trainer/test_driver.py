@@ -6,8 +6,7 @@ import math
 import numpy as np
 import pytest
 
-import envs
-from pizero_ray import methods
+from pizero_ray import envs, methods
 from pizero_ray.cli import main
 from pizero_ray.config import build_config
 from pizero_ray.es import population
@@ -38,8 +37,8 @@ def _held_out_optimal_tour(config, episodes: int) -> float:
     """The mean optimal (Held-Karp) tour of the TSP instances the driver's learning curve is evaluated on."""
     import jax
 
-    from envs import tsp
     from pizero_ray.agent.episodes import episode_reset_keys
+    from pizero_ray.envs import tsp
 
     env = envs.make(config.env, **config.env_kwargs())
     states, _ = jax.vmap(env.reset)(episode_reset_keys(jax.random.PRNGKey(driver.EVAL_SEED), episodes))
@@ -125,8 +124,7 @@ def test_gradient_parts_from_workers_equal_the_update_in_one_process(two_iterati
     """Workers return each chunk's share from the noise they kept; the driver's own path regenerates it."""
     import jax.numpy as jnp
 
-    import envs
-    from pizero_ray import es
+    from pizero_ray import envs, es
     from pizero_ray.es import population
 
     trained_path, trained = two_iterations

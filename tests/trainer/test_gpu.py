@@ -25,8 +25,7 @@ pytestmark = [pytest.mark.gpu, pytest.mark.skipif(not _gpus(), reason="JAX sees 
 def test_kept_and_regenerated_noise_are_bit_identical_on_the_gpu():
     import jax
 
-    import envs
-    from pizero_ray import es
+    from pizero_ray import envs, es
     from pizero_ray.es import population
     from pizero_ray.trainer import local_devices
 
@@ -50,7 +49,7 @@ def test_one_and_two_gpu_workers_give_the_same_parameters(ray_cluster, tmp_path,
     """Two workers on one GPU (half each) against one worker with the whole GPU: the same hash."""
     import ray
 
-    import envs
+    from pizero_ray import envs
     from pizero_ray.es import population
     from pizero_ray.storage import run_dir, runs
     from pizero_ray.trainer import driver, workers
@@ -86,8 +85,7 @@ def test_a_launchs_chunks_score_and_form_parts_the_same_however_they_are_asked_f
     regenerates a lost chunk's part)."""
     import jax
 
-    import envs
-    from pizero_ray import es
+    from pizero_ray import envs, es
     from pizero_ray.es import population
     from pizero_ray.trainer import local_devices
 
@@ -125,7 +123,7 @@ def test_the_loops_compiled_do_not_change_the_scores_on_the_gpu():
             variant = dataclasses.replace(config, episode_loop=episode_loop, simulation_loop=simulation_loop)
             chunks = local_devices.ChunkScorer(variant, max_devices=1)
             if theta is None:
-                import envs
+                from pizero_ray import envs
                 from pizero_ray.es import population
 
                 theta = np.asarray(population.flat_params(config, envs.make("tsp"))[0])

@@ -6,8 +6,7 @@ import jax
 import numpy as np
 import pytest
 
-import envs
-from pizero_ray import es
+from pizero_ray import envs, es
 from pizero_ray.config import build_config
 from pizero_ray.es import population
 from pizero_ray.trainer import local_devices

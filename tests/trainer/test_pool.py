@@ -159,8 +159,7 @@ def test_gradient_parts_of_a_dead_worker_are_computed_by_the_driver(ray_session,
 
     import numpy as np
 
-    import envs
-    from pizero_ray import es
+    from pizero_ray import envs, es
     from pizero_ray.es import population
     from pizero_ray.trainer.options import PoolOptions
     from pizero_ray.trainer.pool import WorkerPool
@@ -201,8 +200,7 @@ def test_gpu_workers_regenerate_a_dead_workers_parts(ray_session, ray_cluster, c
 
     import numpy as np
 
-    import envs
-    from pizero_ray import es
+    from pizero_ray import envs, es
     from pizero_ray.es import population
     from pizero_ray.trainer.options import PoolOptions
     from pizero_ray.trainer.pool import WorkerPool
@@ -531,7 +529,9 @@ def test_a_pool_that_lost_its_last_worker_waits_the_worker_wait_from_the_loss_th
 
     _fake_workers(monkeypatch)
     options = PoolOptions(workers=1, compile_cache=None, worker_wait_minutes=SHORT_WAIT_MINUTES)
-    pool, theta_ref = _ready_pool(ray_session, options)
+    # Started with the default wait: on a busy machine a worker can take longer than the short one to start.
+    pool, theta_ref = _ready_pool(ray_session, dataclasses.replace(options, worker_wait_minutes=15.0))
+    pool._options, pool._wait.wait_minutes = options, SHORT_WAIT_MINUTES
     try:
         time.sleep(60 * SHORT_WAIT_MINUTES + 0.5)
         (worker,) = pool._workers
@@ -589,7 +589,7 @@ def test_a_worker_whose_second_device_fails_to_compile_is_handed_chunks_for_one(
 
     import numpy as np
 
-    import envs
+    from pizero_ray import envs
     from pizero_ray.es import population
     from pizero_ray.trainer import workers
     from pizero_ray.trainer.options import PoolOptions

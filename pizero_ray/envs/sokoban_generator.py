@@ -33,7 +33,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from envs.boxoban import BOX, FLOOR, GOAL, PLAYER, PLAYER_ON_GOAL, ROOM_SIZE, WALL
+from pizero_ray.envs.boxoban import BOX, FLOOR, GOAL, PLAYER, PLAYER_ON_GOAL, ROOM_SIZE, WALL
 
 MOVES = ((-1, 0), (1, 0), (0, -1), (0, 1))  # up, down, left, right: the environment's action order
 MAX_BOXES = 8  # more hardly fit Boxoban-sized rooms (~31 floor cells)

@@ -70,7 +70,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import (
+from pizero_ray.envs.base import (
     Environment,
     EnvSpec,
     Observation,
@@ -83,7 +83,7 @@ from envs.base import (
     require_bool,
     require_int,
 )
-from envs.rendering import Header, canvas_with_header
+from pizero_ray.envs.rendering import Header, canvas_with_header
 
 NUM_ACTIONS = 5  # Jumanji's: 4 moves and a no-op
 NUM_MOVES = 4

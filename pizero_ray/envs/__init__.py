@@ -1,8 +1,8 @@
-"""JAX-native environments for PiZero; see ``envs.base`` for the protocol.
+"""JAX-native environments for PiZero; see ``pizero_ray.envs.base`` for the protocol.
 
 Each environment module provides ``make(**params) -> Environment``; an
 environment of your own is named by import path instead of registered here
-(``make("mypackage.mymodule:make")``, ``envs.import_path``). The
+(``make("mypackage.mymodule:make")``, ``pizero_ray.envs.import_path``). The
 training presets that suit an environment (horizon-dependent population sizes,
 say) are the trainer's: ``pizero_ray.presets.ENV_PRESETS``.
 """
@@ -12,18 +12,18 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from envs.base import Environment, EnvSpec, Observation
+from pizero_ray.envs.base import Environment, EnvSpec, Observation
 
 # name -> (module, extra factory arguments)
 _REGISTRY: dict[str, tuple[str, dict[str, Any]]] = {
-    "tsp": ("envs.tsp", {}),
-    "collect": ("envs.collect", {}),
-    "flp": ("envs.flp", {"objective": "max"}),
-    "flp-mean": ("envs.flp", {"objective": "mean"}),
-    "2048": ("envs.game2048", {}),
-    "pacman": ("envs.pacman", {"partial": False}),
-    "pacman-po": ("envs.pacman", {"partial": True}),
-    "sokoban": ("envs.sokoban", {}),
+    "tsp": ("pizero_ray.envs.tsp", {}),
+    "collect": ("pizero_ray.envs.collect", {}),
+    "flp": ("pizero_ray.envs.flp", {"objective": "max"}),
+    "flp-mean": ("pizero_ray.envs.flp", {"objective": "mean"}),
+    "2048": ("pizero_ray.envs.game2048", {}),
+    "pacman": ("pizero_ray.envs.pacman", {"partial": False}),
+    "pacman-po": ("pizero_ray.envs.pacman", {"partial": True}),
+    "sokoban": ("pizero_ray.envs.sokoban", {}),
 }
 
 ENV_NAMES = tuple(sorted(_REGISTRY))
@@ -43,10 +43,10 @@ def _module(name: str):
 
 def make(name: str, **env_args) -> Environment:
     """Builds an environment by name, or by import path ``module:factory`` (an environment of your own,
-    checked against the protocol: ``envs.import_path``); unknown names or bad parameters raise a one-line
+    checked against the protocol: ``pizero_ray.envs.import_path``); unknown names or bad parameters raise a one-line
     ValueError."""
     if is_import_path(name):
-        from envs import import_path
+        from pizero_ray.envs import import_path
 
         return import_path.make(name, **env_args)
     module = _module(name)

@@ -1,4 +1,4 @@
-"""Checking an environment against the protocol (``envs.base``) before anything trains on it.
+"""Checking an environment against the protocol (``pizero_ray.envs.base``) before anything trains on it.
 
 ``check_environment`` traces ``reset`` and ``step`` with ``jax.eval_shape``
 (no compile, no episode played) and compares what they return with the
@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation
+from pizero_ray.envs.base import Environment, EnvSpec, Observation
 
 # What tracing raises when Python control flow or NumPy meets a traced value: the function is not jittable.
 _TRACER_ERRORS = (jax.errors.ConcretizationTypeError, jax.errors.TracerArrayConversionError,
@@ -43,7 +43,7 @@ def _first_line(error: BaseException) -> str:
 def check_spec(spec: Any, source: str) -> None:
     """Every EnvSpec field of the right type and range; discrete or continuous, not both."""
     if not isinstance(spec, EnvSpec):
-        raise _problem(source, f"spec must be an envs.base.EnvSpec, got {type(spec).__name__}")
+        raise _problem(source, f"spec must be a pizero_ray.envs.base.EnvSpec, got {type(spec).__name__}")
 
     def whole(name: str, low: int) -> None:
         value = getattr(spec, name)
@@ -69,7 +69,7 @@ def check_spec(spec: Any, source: str) -> None:
 def _check_observation(observation: Any, spec: EnvSpec, source: str, where: str) -> None:
     """The observation's three arrays with the shapes and dtypes the spec implies."""
     if not isinstance(observation, Observation):
-        raise _problem(source, f"{where} must return an envs.base.Observation, got {_described(observation)}")
+        raise _problem(source, f"{where} must return a pizero_ray.envs.base.Observation, got {_described(observation)}")
     expected = {"vector": ((spec.observation_size,), jnp.float32),
                 "action_features": ((spec.num_actions, spec.action_feature_size), jnp.float32),
                 "action_mask": ((spec.num_actions,), jnp.bool_)}
@@ -117,7 +117,7 @@ def check_environment(env: Any, source: str | None = None) -> Environment:
     """
     source = source or str(getattr(env, "name", env))
     if not isinstance(env, Environment):
-        raise _problem(source, f"the factory must return an envs.base.Environment, got {type(env).__name__}")
+        raise _problem(source, f"the factory must return a pizero_ray.envs.base.Environment, got {type(env).__name__}")
     if not isinstance(env.name, str) or not env.name:
         raise _problem(source, f"name must be a non-empty string, got {env.name!r}")
     check_spec(env.spec, source)
@@ -177,7 +177,7 @@ def _check_legal_actions(env: Environment, source: str) -> None:
 
 def _first_without_legal_action(env: Environment, source: str) -> str | None:
     """"reset" or "step N", the first of one short episode whose mask is all False; None if none is."""
-    from envs.base import random_legal_action
+    from pizero_ray.envs.base import random_legal_action
 
     key = jax.random.PRNGKey(0)
     try:

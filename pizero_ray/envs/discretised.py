@@ -15,7 +15,7 @@ import itertools
 
 import jax.numpy as jnp
 
-from envs.base import Environment, Observation, require, require_int
+from pizero_ray.envs.base import Environment, Observation, require, require_int
 
 
 def grid_points(points_per_dim: int, action_dim: int, low: float, high: float) -> jnp.ndarray:

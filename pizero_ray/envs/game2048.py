@@ -56,7 +56,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import (
+from pizero_ray.envs.base import (
     Environment,
     EnvSpec,
     Observation,
@@ -68,7 +68,7 @@ from envs.base import (
     require_choice,
     require_int,
 )
-from envs.rendering import Header, canvas_with_header, font
+from pizero_ray.envs.rendering import Header, canvas_with_header, font
 
 NUM_MOVES = 4
 BOARD_SIZE = 4

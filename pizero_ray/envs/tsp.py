@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, require_bool, require_choice, require_int
+from pizero_ray.envs.base import Environment, EnvSpec, Observation, require_bool, require_choice, require_int
 
 MAX_EXACT_CITIES = 12
 FEATURES = ("distances", "paper")

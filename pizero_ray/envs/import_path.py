@@ -1,8 +1,8 @@
 """Environments of your own, named by import path: ``--env mypackage.mymodule:make``.
 
 ``module:factory`` names a function in an importable module; it is called
-with the ``--env-arg`` parameters and returns an ``envs.base.Environment``,
-which ``envs.check`` checks before anything trains on it.
+with the ``--env-arg`` parameters and returns a ``pizero_ray.envs.base.Environment``,
+which ``pizero_ray.envs.check`` checks before anything trains on it.
 
 Where the module is found (docs/your-environment.md): as ``python -m``
 finds it, in the directory ``pizero`` runs in first, then on PYTHONPATH
@@ -19,8 +19,8 @@ import os
 import sys
 from typing import Callable
 
-from envs.base import Environment
-from envs.check import check_environment
+from pizero_ray.envs.base import Environment
+from pizero_ray.envs.check import check_environment
 
 EXAMPLE = "examples.corridor:make"
 
@@ -61,19 +61,21 @@ def factory(path: str) -> Callable[..., Environment]:
         raise ValueError(f"environment {path!r}: module {module_name} ({where}) has no attribute {name!r}")
     found = getattr(module, name)
     if not callable(found):
-        raise ValueError(f"environment {path!r}: {name} must be a function returning an envs.base.Environment, "
+        raise ValueError(f"environment {path!r}: {name} must be a function returning a "
+                         "pizero_ray.envs.base.Environment, "
                          f"got {type(found).__name__}")
     return found
 
 
 def make(path: str, **env_args) -> Environment:
-    """The environment ``module:factory(**env_args)`` returns, checked against the protocol (``envs.check``)."""
+    """The environment ``module:factory(**env_args)`` returns, checked against the protocol
+    (``pizero_ray.envs.check``)."""
     build = factory(path)
     try:
         env = build(**env_args)
     except TypeError as error:  # as for registered environments: an unknown or missing parameter
         raise ValueError(f"bad parameters for environment {path!r}: {env_args} ({error})") from None
-    except ValueError as error:  # the factory's own check of a parameter (envs.base.require), kept to one line
+    except ValueError as error:  # the factory's own check of a parameter (envs.base.require): kept to one line
         raise ValueError(" ".join(str(error).split())) from None
     except Exception as error:  # noqa: BLE001 -- the user's factory: whatever it raises becomes one line
         lines = str(error).strip().splitlines()

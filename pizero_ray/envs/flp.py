@@ -73,7 +73,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import Environment, EnvSpec, Observation, require_choice, require_int
+from pizero_ray.envs.base import Environment, EnvSpec, Observation, require_choice, require_int
 
 OBJECTIVES = ("max", "mean")
 VIEWS = ("flat", "grid")

@@ -62,7 +62,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs.base import (
+from pizero_ray.envs.base import (
     Environment,
     EnvSpec,
     Observation,
@@ -72,7 +72,7 @@ from envs.base import (
     require_choice,
     require_int,
 )
-from envs.rendering import Header, canvas_with_header
+from pizero_ray.envs.rendering import Header, canvas_with_header
 
 NUM_MOVES = 4
 # (row, column) offsets of the moves; row 0 is the top of the grid.

@@ -14,7 +14,7 @@ early once every box is on a goal (the score is then the number of boxes).
 Levels: ``levels=PATH`` loads Boxoban text files (one file, or every *.txt
 under a directory; see ``envs.boxoban``). Without it, a bank of ``num_levels``
 levels with ``num_boxes`` boxes is generated from ``generator_seed`` by reverse
-play (``envs.sokoban_generator``); the generator parameters are ignored when
+play (``pizero_ray.envs.sokoban_generator``); the generator parameters are ignored when
 levels are loaded, so a run trained on generated levels can be evaluated on
 Boxoban files with ``--env-arg levels=PATH``. Either way the bank is an int8
 array [L, 10, 10] inside the program and ``reset`` samples a level uniformly
@@ -36,7 +36,7 @@ its consequences, so any lookahead has to come from the agent.
 
 References (``pizero eval``): the agent's solved fraction, and a uniformly
 random agent on the same initial states (fixed key). On every level of a bank
-once, H = 50, measured with ``JAX_PLATFORMS=cpu python -m envs.sokoban [PATH]``:
+once, H = 50, measured with ``JAX_PLATFORMS=cpu python -m pizero_ray.envs.sokoban [PATH]``:
 
     levels                                   random goals covered   random solved
     generated (default: 1000, seed 0)        0.42 of 4              0.0 %
@@ -54,8 +54,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from envs import boxoban, sokoban_generator
-from envs.base import (
+from pizero_ray.envs import boxoban, sokoban_generator
+from pizero_ray.envs.base import (
     Environment,
     EnvSpec,
     Observation,
@@ -66,7 +66,7 @@ from envs.base import (
     require_int,
     require_path,
 )
-from envs.rendering import Header, canvas_with_header
+from pizero_ray.envs.rendering import Header, canvas_with_header
 
 ROOM_SIZE = boxoban.ROOM_SIZE
 MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int32)  # up, down, left, right (row, column)
