@@ -6,7 +6,7 @@ Usage::
         LABEL=RUN_DIR[:EVAL_JSON] ...
 
 EVAL_JSON is what ``pizero eval RUN_DIR --episodes 1000 --seed 0 --json`` wrote;
-its mean gets a normal-approximation 95% interval (1.96 standard errors). The
+its mean and 95% interval are taken as it wrote them. The
 curve is every learning-curve evaluation as [iteration, score, training
 seconds]. Committed summaries keep a run's figures after its run dir is gone.
 """
@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import statistics
 import subprocess
 import sys
@@ -28,11 +27,11 @@ from pizero_ray.storage import run_dir  # noqa: E402
 
 def held_out(eval_path: Path) -> dict:
     evaluation = json.loads(eval_path.read_text())
-    mean, half = evaluation["mean_score"], 1.96 * evaluation["std_score"] / math.sqrt(evaluation["episodes"])
+    mean, (low, high) = evaluation["mean_score"], evaluation["ci95"]  # as pizero eval --json wrote them
     references = {k: v for k, v in evaluation.items() if k.endswith(("_score", "_length", "_covered", "_fraction"))
                   and k not in ("mean_score", "std_score") and isinstance(v, float)}
     return {"episodes": evaluation["episodes"], "seed": evaluation["seed"], "mean_score": round(mean, 4),
-            "ci95": [round(mean - half, 4), round(mean + half, 4)], "references": references}
+            "ci95": [round(low, 4), round(high, 4)], "references": references}
 
 
 def summary(path: Path, eval_path: Path | None) -> dict:

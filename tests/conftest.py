@@ -55,7 +55,7 @@ from pizero_ray.config import build_config  # noqa: E402
 from pizero_ray.trainer import compile_cache  # noqa: E402
 
 # Two CPU devices, as a 2-core worker has: single-device code runs on the
-# first, and tests of local_devices can deal chunks over both.
+# first, and tests of chunk_scoring can deal chunks over both.
 jax.config.update("jax_num_cpu_devices", 2)
 # The test process uses the session's compile cache from the start, as the
 # workers do (and as it did anyway once a test had trained): a program that

@@ -30,7 +30,7 @@ def _run(path: Path, scores: list[float], spreads: list[float] | None = None) ->
 def test_summary_keeps_the_curve_times_and_a_held_out_interval(summarise, tmp_path):
     _run(tmp_path / "a", [-9.5, None, -7.25])
     evaluation = {"episodes": 100, "seed": 0, "mean_score": -5.0, "std_score": 2.0, "greedy_score": -1.0,
-                  "env": "collect", "iteration": 3}
+                  "env": "collect", "iteration": 3, "ci95": [-5.5, -4.7]}  # as pizero eval wrote it
     (tmp_path / "a.json").write_text(json.dumps(evaluation))
     _run(tmp_path / "b", [-10.0])
     out = tmp_path / "summary.json"
@@ -44,7 +44,8 @@ def test_summary_keeps_the_curve_times_and_a_held_out_interval(summarise, tmp_pa
     assert a["env_args"] == [["view", "centred"]] and a["planner"] == "none"
     assert a["parameter_norm_at_end"] == 23.0
     assert (a["weight_decay"], a["episodes_per_member"], a["fitness_shaping"]) == (0.0, 1, "centered_ranks")
-    assert a["held_out"]["ci95"] == [-5.392, -4.608] and a["held_out"]["references"] == {"greedy_score": -1.0}
+    # the interval is eval's own (not 1.96 standard errors, -5.392 to -4.608, recomputed here)
+    assert a["held_out"]["ci95"] == [-5.5, -4.7] and a["held_out"]["references"] == {"greedy_score": -1.0}
     assert "held_out" not in b and b["iterations"] == 1
 
 

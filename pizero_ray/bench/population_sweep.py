@@ -2,7 +2,7 @@
 
 Each point is timed alone, one after another (not interleaved as ``timing.time_interleaved`` does): the points
 differ in size by orders of magnitude, and a small one timed between large ones would measure their wake. A
-point builds one ``local_devices.ChunkScorer`` on one device and hands it the whole population's consecutive
+point builds one ``chunk_scoring.ChunkScorer`` on one device and hands it the whole population's consecutive
 chunks in one ``score_many`` call, as a GPU worker given ``--chunks-per-call`` = all its chunks is, and (unless
 the point's overrides set ``chunks_per_launch``) as one launch: one device call of every pair. A warm-up call
 first, then the median of ``repeats`` calls. A point that fails (out of device memory, a bad setting) records
@@ -97,11 +97,11 @@ def time_population(config: Config, repeats: int) -> dict:
     """The whole population scored on one device in one ``score_many`` call: compile, warm-up, median."""
     from pizero_ray import envs
     from pizero_ray.es import population
-    from pizero_ray.trainer import local_devices
+    from pizero_ray.trainer import chunk_scoring
 
     theta = np.asarray(population.flat_params(config, envs.make(config.env, **config.env_kwargs()))[0])
     started = time.perf_counter()
-    scorer = local_devices.ChunkScorer(config, max_devices=1)
+    scorer = chunk_scoring.ChunkScorer(config, max_devices=1)
     scorer.wait_until_compiled()
     compile_s = time.perf_counter() - started
     first_pairs = list(range(0, config.population, config.chunk_size))

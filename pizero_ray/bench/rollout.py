@@ -11,16 +11,16 @@ from pizero_ray.config import Config
 
 
 def compile_rollout(config: Config, max_devices: int | None = None) -> CompiledRollout:
-    """The rollout a worker runs (``local_devices.ChunkScorer``), compiled for this process's devices (or the
+    """The rollout a worker runs (``chunk_scoring.ChunkScorer``), compiled for this process's devices (or the
     first ``max_devices``), its chunks dealt over them."""
     from pizero_ray import envs
     from pizero_ray.es import population
-    from pizero_ray.trainer import local_devices
+    from pizero_ray.trainer import chunk_scoring
 
     env = envs.make(config.env, **config.env_kwargs())
     theta = np.asarray(population.flat_params(config, env)[0])
     started = time.perf_counter()
-    chunks = local_devices.ChunkScorer(config, max_devices)
+    chunks = chunk_scoring.ChunkScorer(config, max_devices)
     chunks.wait_until_compiled()
     compile_s = time.perf_counter() - started  # every device's program
     first_pairs = range(0, config.population, config.chunk_size)
@@ -56,7 +56,7 @@ def pair_scorer_loops(config: Config) -> dict:
     """``loops.summary`` of the chunk program the workers run (``population.make_pair_scorer``), compiled for
     this process's first device: its while loops, how they nest, which are data-dependent.
 
-    Lowered as ``local_devices.ChunkScorer`` lowers it (each input placed on the device), so that with a
+    Lowered as ``chunk_scoring.ChunkScorer`` lowers it (each input placed on the device), so that with a
     persistent compile cache the scorer's program is loaded, not compiled again."""
     import jax
     import jax.numpy as jnp

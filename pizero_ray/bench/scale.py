@@ -81,7 +81,7 @@ def sweep_point(workers: int, chunks: int, design: str) -> dict:
 def _against_stubs(config, options, stubs, on_iteration=None) -> tuple[dict, list[dict]]:
     """``train_briefly`` with ``stubs`` for workers (ended after): the result, and the rows after the first
     (which starts the workers)."""
-    from pizero_ray.bench.trainer import train_briefly
+    from pizero_ray.bench.training_runs import train_briefly
 
     try:
         result, rows = train_briefly(config, options, stubs.factory(), on_iteration)

@@ -106,17 +106,17 @@ def _refuse_untrusted_envs(sittings, trust_env: bool) -> None:
 
 
 def cmd_plot_experiment(args) -> int:
-    from pizero_ray.experiment import grid, report
+    from pizero_ray.experiment import grid, results
 
     sittings = [(out, grid.read_spec(out)) for out in map(rundir.resolve, args.experiment_dirs)]
     _refuse_untrusted_envs(sittings, args.trust_env)
-    summary = report.write_report(sittings, Path(args.out))
-    shown = report.state_runs(sittings)
+    summary = results.write_report(sittings, Path(args.out))
+    shown = results.state_runs(sittings)
     if shown:
         from pizero_ray.cli.states import states_figure
 
         eval_env_args = {env: dict(values) for _, spec in sittings for env, values in spec.eval_env_args}
-        methods = sorted({report.METHOD_LABELS[path.parent.name] for path in shown.values()})
+        methods = sorted({results.METHOD_LABELS[path.parent.name] for path in shown.values()})
         title = (f"Seed 0's {' / '.join(methods)} after {sittings[0][1].budget_minutes:g} training minutes: "
                  "one evaluation episode each")
         states_figure(shown, Path(args.out) / "states.png", env_args=eval_env_args,  # Sokoban on its valid levels

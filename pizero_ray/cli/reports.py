@@ -191,12 +191,12 @@ def _bench_scale(args) -> int:
 
 def cmd_bench(args) -> int:
     from pizero_ray.cli import bench
-    from pizero_ray.trainer import local_devices
+    from pizero_ray.trainer import chunk_scoring
 
     if args.scale:
         return _bench_scale(args)
 
-    local_devices.configure_cpu_devices(args.devices or local_devices.cpu_count())  # before JAX starts
+    chunk_scoring.configure_cpu_devices(args.devices or chunk_scoring.cpu_count())  # before JAX starts
     plan = bench.QUICK if args.quick else bench.FULL
     if args.simulations:
         plan = dataclasses.replace(plan, simulation_sweep=args.simulations)

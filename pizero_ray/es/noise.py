@@ -99,7 +99,7 @@ def weighted_noise_sum(weights: jax.Array, noise: jax.Array, perturbation: Pertu
     matrix; the same additions in the same order, so the same bits. A GPU
     launches kernels for each trip of each loop; on 2 CPU cores one loop was
     10-35% slower (the bench agent, chunks of 32 and 256), so it is the GPU
-    workers' choice (``local_devices.ChunkScorer``).
+    workers' choice (``chunk_scoring.ChunkScorer``).
     """
     if perturbation.rank == 0:
         return weights @ noise

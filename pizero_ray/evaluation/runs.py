@@ -21,6 +21,8 @@ import numpy as np
 
 from pizero_ray.config import ConfigError
 
+EVAL_SEED = 2_000_003  # the learning curve's fixed held-out episodes (the driver's evaluations, an experiment's)
+
 if TYPE_CHECKING:
     from pizero_ray.config import Config
     from pizero_ray.methods import LoadedRun

@@ -77,7 +77,7 @@ def train_trial(config: dict) -> None:
     from ray import tune
 
     from pizero_ray.storage import run_dir as rundir
-    from pizero_ray.trainer import driver, local_devices
+    from pizero_ray.trainer import chunk_scoring, driver
     from pizero_ray.trainer.options import RunOptions
 
     trial_config = config["trial"]
@@ -99,7 +99,7 @@ def train_trial(config: dict) -> None:
 
     # A baseline learns in this process: pinned to cores of its own, as an ES trial's workers pin theirs, so
     # that trials running side by side each get their CPUs and no more.
-    cores = local_devices.CoreClaim.claim(experiment.cpus_per_trial) if config.gradient_trained else None
+    cores = chunk_scoring.CoreClaim.claim(experiment.cpus_per_trial) if config.gradient_trained else None
     try:
         driver.train(path, config, options, on_iteration=report)
     finally:

@@ -27,13 +27,13 @@ import numpy as np
 
 from pizero_ray import methods
 from pizero_ray.config import Config
+from pizero_ray.evaluation.runs import EVAL_SEED
 from pizero_ray.storage import checkpoints, runs, tensorboard, writer_lock
 from pizero_ray.storage import run_dir as rundir
 from pizero_ray.trainer import compile_cache
 from pizero_ray.trainer.options import RunOptions
 from pizero_ray.trainer.pool import Interrupted, TrainingError, WorkerPool
 
-EVAL_SEED = 2_000_003  # fixed held-out episodes for the learning curve
 _log = logging.getLogger(__name__)
 
 __all__ = ["RunOptions", "TrainingError", "train"]

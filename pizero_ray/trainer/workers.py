@@ -6,7 +6,7 @@ before), so "ready" means "can return a chunk in one rollout's time", and the
 driver's per-chunk timeout need not allow for compiles.
 
 A CPU worker with N CPUs runs N JAX CPU devices and scores up to N chunks
-at once, one per device (``local_devices``); a GPU worker uses the GPUs Ray
+at once, one per device (``chunk_scoring``); a GPU worker uses the GPUs Ray
 gave it the same way. Its first device compiles before it is ready, the others
 after: ``ready`` says how many devices have compiled so far, and ``compiled``
 answers once the others have compiled or failed to, with the devices it runs
@@ -22,7 +22,7 @@ from typing import Any, Callable, NamedTuple
 import numpy as np
 import ray
 
-from pizero_ray.trainer import local_devices
+from pizero_ray.trainer import chunk_scoring
 
 
 class RolloutWorker:
@@ -33,15 +33,15 @@ class RolloutWorker:
         started = time.time()
         from pizero_ray.trainer import compile_cache
 
-        self._cores = local_devices.CoreClaim.claim(cpu_devices) if pin_cores else local_devices.CoreClaim((), [])
+        self._cores = chunk_scoring.CoreClaim.claim(cpu_devices) if pin_cores else chunk_scoring.CoreClaim((), [])
         if cpu_only:  # a CPU worker on a GPU node must not grab the GPU
-            local_devices.use_cpu_only()
-        local_devices.configure_cpu_devices(cpu_devices)  # before JAX's first computation
+            chunk_scoring.use_cpu_only()
+        chunk_scoring.configure_cpu_devices(cpu_devices)  # before JAX's first computation
         compile_cache.enable(compile_cache_dir)
         from pizero_ray.config import Config
 
         self.config = Config.from_json(config_json)
-        self._chunks = local_devices.ChunkScorer(self.config, keep_noise=keep_noise)
+        self._chunks = chunk_scoring.ChunkScorer(self.config, keep_noise=keep_noise)
         self._info = {
             "pid": os.getpid(),
             "node_id": ray.get_runtime_context().get_node_id(),
@@ -63,7 +63,7 @@ class RolloutWorker:
 
     def peak_rss_mb(self) -> float:
         """This worker process's peak resident memory (for `pizero bench`)."""
-        return local_devices.peak_rss_mb()
+        return chunk_scoring.peak_rss_mb()
 
     def score_chunk(self, theta: np.ndarray, iteration_seed: int, first_pair: int) -> np.ndarray:
         return self._chunks.score(theta, iteration_seed, first_pair)
@@ -86,7 +86,7 @@ def start_worker(
     config_json: str, num_cpus: float, num_gpus: float, compile_cache_dir: str | None, resources: dict | None = None,
     pin_cores: bool = True, keep_noise: bool = True,
 ):
-    """A worker actor; a CPU worker pins itself to cores of its own if it can (``local_devices.CoreClaim``).
+    """A worker actor; a CPU worker pins itself to cores of its own if it can (``chunk_scoring.CoreClaim``).
 
     ``keep_noise``: the worker keeps each chunk's noise for the chunk's gradient
     part; False where the driver forms every part (``--gradient-on`` resolved

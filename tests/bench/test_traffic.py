@@ -9,7 +9,7 @@ header is about 120 bytes, an integer's 15, an object id 28).
 import pytest
 
 from pizero_ray import envs
-from pizero_ray.bench import trainer
+from pizero_ray.bench import training_runs
 from pizero_ray.config import build_config
 from pizero_ray.es import population
 
@@ -19,7 +19,8 @@ FRAMING = 200
 
 @pytest.mark.parametrize("gradient_on", ["driver", "workers"])
 def test_bytes_each_way_are_the_objects_that_moved(ray_session, compile_cache_dir, gradient_on):
-    result = trainer.trainer(CONFIG, workers=1, iterations=2, cache_dir=compile_cache_dir, gradient_on=gradient_on)
+    result = training_runs.trainer(CONFIG, workers=1, iterations=2, cache_dir=compile_cache_dir,
+                                   gradient_on=gradient_on)
     parameters = population.flat_params(CONFIG, envs.make(CONFIG.env))[1].size
     chunks, pairs = CONFIG.num_chunks, CONFIG.chunk_size
     parts_asked = gradient_on == "workers"  # on the driver, no part is asked of a worker: none comes back

@@ -138,7 +138,7 @@ def test_plot_experiment_joins_sittings_over_other_environments(experiment, tmp_
     import shutil
 
     from pizero_ray.cli import main
-    from pizero_ray.experiment.report import REFERENCES_FILE
+    from pizero_ray.experiment.results import REFERENCES_FILE
 
     out = experiment[0]
     spec = grid.read_spec(out)

@@ -27,10 +27,10 @@ def test_kept_and_regenerated_noise_are_bit_identical_on_the_gpu():
 
     from pizero_ray import envs, es
     from pizero_ray.es import population
-    from pizero_ray.trainer import local_devices
+    from pizero_ray.trainer import chunk_scoring
 
     config = build_config("default", env="tsp", population=64, chunk_size=32)
-    chunks = local_devices.ChunkScorer(config, max_devices=1)
+    chunks = chunk_scoring.ChunkScorer(config, max_devices=1)
     assert chunks.devices[0].platform == "gpu"
     theta, layout = population.flat_params(config, envs.make("tsp"))
     seed, first_pair = 12345, 32
@@ -87,17 +87,17 @@ def test_a_launchs_chunks_score_and_form_parts_the_same_however_they_are_asked_f
 
     from pizero_ray import envs, es
     from pizero_ray.es import population
-    from pizero_ray.trainer import local_devices
+    from pizero_ray.trainer import chunk_scoring
 
     config = build_config("default", env="tsp", population=256, chunk_size=32, chunks_per_launch=8,
                           perturbation_rank=rank)
     theta = np.asarray(population.flat_params(config, envs.make("tsp"))[0])
     layout = population.flat_params(config, envs.make("tsp"))[1]
     firsts = list(range(0, 256, 32))
-    together = local_devices.ChunkScorer(config, max_devices=1)
+    together = chunk_scoring.ChunkScorer(config, max_devices=1)
     assert together.devices[0].platform == "gpu"
     launched = together.score_many(theta, 7, firsts)
-    alone = local_devices.ChunkScorer(config, max_devices=1)
+    alone = chunk_scoring.ChunkScorer(config, max_devices=1)
     np.testing.assert_array_equal(alone.score(theta, 7, 96), launched[3])
     weights = np.random.default_rng(1).standard_normal((len(firsts), 32)).astype(np.float32)
     parts = together.gradient_parts(7, firsts, weights)
@@ -113,7 +113,7 @@ def test_the_loops_compiled_do_not_change_the_scores_on_the_gpu():
     scores (the GPU's own fusions and kernels may differ from the CPU's)."""
     import dataclasses
 
-    from pizero_ray.trainer import local_devices
+    from pizero_ray.trainer import chunk_scoring
 
     config = build_config("default", env="tsp", population=64, chunk_size=64)
     theta = None
@@ -121,7 +121,7 @@ def test_the_loops_compiled_do_not_change_the_scores_on_the_gpu():
     for episode_loop in ("until_done", "horizon"):
         for simulation_loop in ("fori", "unrolled"):
             variant = dataclasses.replace(config, episode_loop=episode_loop, simulation_loop=simulation_loop)
-            chunks = local_devices.ChunkScorer(variant, max_devices=1)
+            chunks = chunk_scoring.ChunkScorer(variant, max_devices=1)
             if theta is None:
                 from pizero_ray import envs
                 from pizero_ray.es import population

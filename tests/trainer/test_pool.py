@@ -14,7 +14,7 @@ from tests.trainer import fake_workers
 ITERATIONS = 4
 # 4 chunks of 2 pairs per iteration. No planner: what is checked here is the pool (faults, nodes, stragglers),
 # and each worker it starts traces and compiles the agent; without the search that is a third of the work.
-# The planner's agent across workers is test_driver.py's and test_local_devices.py's.
+# The planner's agent across workers is test_driver.py's and test_chunk_scoring.py's.
 CONFIG = build_config("tiny", population=8, planner="none")
 
 

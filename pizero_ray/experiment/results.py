@@ -65,7 +65,7 @@ def _reference_scores(experiment: grid.Experiment, env_name: str) -> dict[str, f
 
     from pizero_ray import methods
     from pizero_ray.agent import episodes
-    from pizero_ray.trainer.driver import EVAL_SEED
+    from pizero_ray.evaluation.runs import EVAL_SEED
 
     config = experiment.config(grid.Trial(env_name, "pizero", 0))
     env = methods.other_env(config, methods.make_env(config), dict(dict(experiment.eval_env_args).get(env_name, ())))

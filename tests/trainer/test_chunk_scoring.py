@@ -9,7 +9,7 @@ import pytest
 from pizero_ray import envs, es
 from pizero_ray.config import build_config
 from pizero_ray.es import population
-from pizero_ray.trainer import local_devices
+from pizero_ray.trainer import chunk_scoring
 
 CONFIG = build_config("tiny", population=8, chunk_size=2)
 FIRST_PAIRS = range(0, CONFIG.population, CONFIG.chunk_size)
@@ -31,7 +31,7 @@ def theta_and_reference():
 
 @pytest.fixture(scope="module")
 def chunks():
-    return local_devices.ChunkScorer(CONFIG)
+    return chunk_scoring.ChunkScorer(CONFIG)
 
 
 def test_the_test_process_has_two_cpu_devices(chunks):
@@ -107,10 +107,10 @@ def test_a_launchs_chunks_score_and_form_parts_the_same_however_they_are_asked_f
     theta, layout = population.flat_params(config, envs.make(config.env, **config.env_kwargs()))
     theta = np.asarray(theta)
     firsts = list(range(0, 16, 2))
-    together = local_devices.ChunkScorer(config, max_devices=1)
+    together = chunk_scoring.ChunkScorer(config, max_devices=1)
     expected = together.score_many(theta, SEED, firsts)
     assert together.launches_run == 2
-    piecemeal = local_devices.ChunkScorer(config, max_devices=1)
+    piecemeal = chunk_scoring.ChunkScorer(config, max_devices=1)
     got = {6: piecemeal.score(theta, SEED, 6)}  # runs chunks 0-3's launch
     got.update(zip([2, 0], piecemeal.score_many(theta, SEED, [2, 0])))  # kept from that launch
     assert piecemeal.launches_run == 1
@@ -136,7 +136,7 @@ def test_a_scorer_that_keeps_no_noise_regenerates_every_part(theta_and_reference
     """Where the driver forms every part (--gradient-on driver, or auto with rank-1 noise on CPU workers)
     nobody asks a worker for one: keeping the noise would only hold memory."""
     theta, _ = theta_and_reference
-    scorer = local_devices.ChunkScorer(CONFIG, max_devices=1, keep_noise=False)
+    scorer = chunk_scoring.ChunkScorer(CONFIG, max_devices=1, keep_noise=False)
     scorer.score(theta, SEED, 0)
     assert len(scorer._kept) == 0
     weights = np.linspace(-1, 1, CONFIG.chunk_size).astype(np.float32)
@@ -147,7 +147,7 @@ def test_a_scorer_that_keeps_no_noise_regenerates_every_part(theta_and_reference
 
 
 def test_the_chunk_cache_keeps_the_two_newest_seeds_within_its_byte_cap():
-    cache = local_devices.ChunkCache(chunk_bytes=10, max_bytes=30)
+    cache = chunk_scoring.ChunkCache(chunk_bytes=10, max_bytes=30)
     cache.keep(1, 0, "1/0")
     cache.keep(2, 0, "2/0")
     cache.keep(1, 2, "1/2")  # a straggler of the seed before: kept, evicts nothing
@@ -189,7 +189,7 @@ def test_a_worker_with_two_cpus_runs_two_devices(ray_session, compile_cache_dir,
     try:
         info = ray_session.get(actor.ready.remote(), timeout=300)
         assert ray_session.get(actor.compiled.remote(), timeout=300)["devices"] == 2  # both, once compiled
-        if local_devices.cpu_count() == 2:
+        if chunk_scoring.cpu_count() == 2:
             assert info["pinned_cores"] == []  # both cores: nothing to pin
         refs = [actor.score_chunk.remote(theta, SEED, first) for first in FIRST_PAIRS]
         for got, want in zip(ray_session.get(refs, timeout=300), reference):
@@ -200,7 +200,7 @@ def test_a_worker_with_two_cpus_runs_two_devices(ray_session, compile_cache_dir,
 
 _CLAIM = """
 import json, os, sys
-from pizero_ray.trainer.local_devices import CoreClaim
+from pizero_ray.trainer.chunk_scoring import CoreClaim
 claim = CoreClaim.claim(int(sys.argv[1]), sys.argv[2])
 print(json.dumps([sorted(claim.cores), sorted(os.sched_getaffinity(0))]), flush=True)
 sys.stdin.readline()  # hold the claim until told to go
@@ -220,7 +220,7 @@ def _claimant(count, lock_dir):
 
 
 def test_processes_claim_cores_of_their_own_and_free_them_on_exit(tmp_path):
-    cores = local_devices.cpu_count()
+    cores = chunk_scoring.cpu_count()
     if cores < 2:
         pytest.skip("needs two cores")
     first, first_cores, first_affinity = _claimant(1, tmp_path)
@@ -247,9 +247,9 @@ import jax
 from jax._src import xla_bridge
 import pizero_ray.trainer.workers  # what a Ray worker process imports before the actor's __init__ runs
 assert not xla_bridge.backends_are_initialized(), "importing the worker module started a JAX backend"
-from pizero_ray.trainer import local_devices
-local_devices.use_cpu_only()
-local_devices.configure_cpu_devices(2)
+from pizero_ray.trainer import chunk_scoring
+chunk_scoring.use_cpu_only()
+chunk_scoring.configure_cpu_devices(2)
 print(jax.config.jax_platforms, sorted({device.platform for device in jax.devices()}), len(jax.devices()))
 """
 

@@ -6,13 +6,13 @@ import dataclasses
 import functools
 import tempfile
 
-from pizero_ray.bench import report
+from pizero_ray.bench import summary
 from pizero_ray.bench.plans import LOW_RANK, BenchPlan, bench_config
 from pizero_ray.bench.rollout import compile_rollout, pair_scorer_loops
 from pizero_ray.bench.straightforward import compile_straightforward
 from pizero_ray.bench.sweeps import budget_and_population_sweeps, planner_sweep
 from pizero_ray.bench.timing import time_interleaved
-from pizero_ray.bench.trainer import trainer, worker_memory
+from pizero_ray.bench.training_runs import trainer, worker_memory
 from pizero_ray.bench.update import driver_update
 
 
@@ -20,7 +20,7 @@ def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
     """Every measurement of ``plan``; the Ray trainer's W workers share ``worker_gpus`` GPUs (0: CPU workers)."""
     import jax
 
-    from pizero_ray.trainer import local_devices, ray_setup
+    from pizero_ray.trainer import chunk_scoring, ray_setup
 
     ray_setup.init(None)  # before JAX starts its threads
     devices = len(jax.local_devices())
@@ -45,13 +45,13 @@ def run(plan: BenchPlan, progress=print, worker_gpus: float = 0.0) -> dict:
     # The workers share the cores the in-process rollout used, and the GPUs (fractions of one, if need be).
     share = functools.partial(_worker_share, devices, worker_gpus)
     trainers, cached, worker_rss = _ray_trainers(plan, configs, share, progress)
-    return report.result(report.Measurements(
+    return summary.result(summary.Measurements(
         device=str(jax.devices()[0]), device_kind=jax.devices()[0].device_kind, devices=devices,
         worker_gpus=worker_gpus, population=plan.population, low_rank_chunk_size=configs["low_rank"].chunk_size,
         rollouts=rollouts, driver_update_s=update_s, sweeps=sweeps, planners=planners, trainers=trainers,
         cold_trainer=trainers["exact", plan.exact_trainer_workers[0]], cached_trainer=cached,
         cpus_per_worker={workers: share(workers)[0] for _, workers in trainers}, worker_peak_rss_mb=worker_rss,
-        peak_rss_mb=local_devices.peak_rss_mb(), program_loops=program_loops))
+        peak_rss_mb=chunk_scoring.peak_rss_mb(), program_loops=program_loops))
 
 
 def _worker_share(devices: int, worker_gpus: float, workers: int) -> tuple[int, float]:
