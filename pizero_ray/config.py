@@ -19,7 +19,11 @@ METHODS = ("pizero", "es", "alphazero", "muzero")
 GRADIENT_METHODS = ("alphazero", "muzero")  # trained by gradients on self-play, in one process (no Ray)
 PLANNERS = ("muzero", "gumbel", "none")
 DECODERS = ("pointer", "flat")
-DECODER_INPUTS = ("state", "action", "visits", "value")
+# What the decoder may read: the abstract state, and the search's abstract action, visit distribution, root value
+# and its root children's Q-values (which move smoothly with the parameters, where few simulations' argmax and
+# visits move in jumps). The default is the first four.
+DECODER_INPUTS = ("state", "action", "visits", "value", "qvalues")
+DEFAULT_DECODER_INPUTS = DECODER_INPUTS[:4]
 FITNESS_SHAPINGS = ("centered_ranks", "difference_ranks", "none")
 ACTION_SELECTIONS = ("argmax", "sample")
 SIMULATOR_RANDOMNESS = ("sampled", "foreseen")
@@ -77,7 +81,7 @@ class Config:
     abstract_discount: float = 1.0
     root_noise: float = setting(0.0, flag="--root-noise", help="Dirichlet fraction (muzero) or Gumbel scale (gumbel)")
     decoder: str = setting("pointer", flag="--decoder", choices=DECODERS, help="the action decoder")
-    decoder_inputs: tuple[str, ...] = setting(DECODER_INPUTS, flag="--decoder-inputs", choices=DECODER_INPUTS,
+    decoder_inputs: tuple[str, ...] = setting(DEFAULT_DECODER_INPUTS, flag="--decoder-inputs", choices=DECODER_INPUTS,
                                               help="what the decoder sees, comma-separated")
     action_selection: str = setting("argmax", flag="--action-selection", choices=ACTION_SELECTIONS,
                                     help="how the action is chosen (sample: a Gumbel-perturbed argmax)")

@@ -34,17 +34,20 @@ class Decoder(NamedTuple):
 
 
 def context_size(inputs: tuple[str, ...], latent_size: int, num_abstract_actions: int) -> int:
-    sizes = {"state": latent_size, "action": num_abstract_actions, "visits": num_abstract_actions, "value": 1}
+    sizes = {"state": latent_size, "action": num_abstract_actions, "visits": num_abstract_actions, "value": 1,
+             "qvalues": num_abstract_actions}
     return sum(sizes[name] for name in inputs)
 
 
 def context(latent: jax.Array, plan: PlanResult, *, inputs: tuple[str, ...], num_abstract_actions: int) -> jax.Array:
-    """What the decoder reads: the chosen parts of (abstract state, abstract action, visits, root value)."""
+    """What the decoder reads: the chosen parts of (abstract state, abstract action, visits, root value, root
+    children's Q-values)."""
     parts = {
         "state": lambda: latent,
         "action": lambda: jax.nn.one_hot(plan.abstract_action, num_abstract_actions),
         "visits": lambda: plan.visit_probs,
         "value": lambda: plan.root_value[..., None],
+        "qvalues": lambda: plan.root_qvalues,
     }
     return jnp.concatenate([parts[name]() for name in inputs], axis=-1)
 

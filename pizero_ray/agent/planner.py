@@ -25,6 +25,7 @@ class PlanResult(NamedTuple):
     abstract_action: jax.Array  # [B] int32: the search's choice
     visit_probs: jax.Array  # [B, k]: the search's action distribution
     root_value: jax.Array  # [B]: the search's value estimate at the root
+    root_qvalues: jax.Array | None = None  # [B, k]: each root child's Q (reward + discount x value; 0 unvisited)
 
 
 Planner = Callable[[networks.Params, jax.Array, jax.Array], PlanResult]
@@ -95,7 +96,8 @@ def no_search(params: networks.Params, latent: jax.Array, key: jax.Array, *, num
     """Without a planner: an all-zero result (the decoder then reads the abstract state only)."""
     del params, key
     batch = latent.shape[0]
-    return PlanResult(jnp.zeros((batch,), jnp.int32), jnp.zeros((batch, num_actions)), jnp.zeros((batch,)))
+    return PlanResult(jnp.zeros((batch,), jnp.int32), jnp.zeros((batch, num_actions)), jnp.zeros((batch,)),
+                      jnp.zeros((batch, num_actions)))
 
 
 def _root(params: networks.Params, latent: jax.Array) -> mctx.RootFnOutput:
@@ -118,7 +120,8 @@ def _recurrent_fn(num_actions: int, discount: float):
 def search(params, latent, key, *, policy: mcts.SearchPolicy, recurrent_fn) -> PlanResult:
     """MCTS over the abstract model with ``policy`` (mctx's MuZero or Gumbel MuZero, bound by ``mcts``)."""
     output = policy(params, key, _root(params, latent), recurrent_fn)
-    return PlanResult(output.action.astype(jnp.int32), output.action_weights, output.search_tree.summary().value)
+    summary = output.search_tree.summary()
+    return PlanResult(output.action.astype(jnp.int32), output.action_weights, summary.value, summary.qvalues)
 
 
 def stochastic_muzero_search(params, latent, key, *, num_actions: int, num_outcomes: int, num_simulations: int,
@@ -149,4 +152,5 @@ def stochastic_muzero_search(params, latent, key, *, num_actions: int, num_outco
         dirichlet_fraction=dirichlet_fraction, pb_c_init=pb_c_init, pb_c_base=pb_c_base, loop_fn=loop_fn,
     )
     abstract_action = jnp.argmax(output.action_weights, axis=-1)
-    return PlanResult(abstract_action.astype(jnp.int32), output.action_weights, output.search_tree.summary().value)
+    summary = output.search_tree.summary()
+    return PlanResult(abstract_action.astype(jnp.int32), output.action_weights, summary.value, summary.qvalues)

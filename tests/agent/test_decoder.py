@@ -11,16 +11,20 @@ from pizero_ray.config import DECODER_INPUTS, build_config
 from pizero_ray.envs.base import EnvSpec, Observation
 
 K, LATENT = 3, 5
-PLAN = PlanResult(jnp.array([2, 0]), jnp.array([[0.2, 0.3, 0.5], [1.0, 0.0, 0.0]]), jnp.array([0.7, -1.5]))
+PLAN = PlanResult(jnp.array([2, 0]), jnp.array([[0.2, 0.3, 0.5], [1.0, 0.0, 0.0]]), jnp.array([0.7, -1.5]),
+                  jnp.array([[0.1, -0.2, 0.4], [0.9, 0.0, 0.0]]))
 
 
-@pytest.mark.parametrize("inputs", [combo for n in range(1, 5) for combo in itertools.combinations(DECODER_INPUTS, n)])
+@pytest.mark.parametrize("inputs", [combo for n in range(1, len(DECODER_INPUTS) + 1)
+                                    for combo in itertools.combinations(DECODER_INPUTS, n)])
 def test_the_context_has_the_size_it_declares_and_holds_what_it_names(inputs):
     latent = jnp.arange(2 * LATENT, dtype=jnp.float32).reshape(2, LATENT)
     ctx = decoder.context(latent, PLAN, inputs=inputs, num_abstract_actions=K)
     assert ctx.shape == (2, decoder.context_size(inputs, LATENT, K))
     if inputs == ("value",):
         np.testing.assert_array_equal(np.asarray(ctx[:, 0]), np.asarray(PLAN.root_value))
+    if inputs == ("qvalues",):
+        np.testing.assert_array_equal(np.asarray(ctx), np.asarray(PLAN.root_qvalues))
     if inputs[0] == "action":
         np.testing.assert_array_equal(np.asarray(ctx[:, :K]), [[0, 0, 1], [1, 0, 0]])
 

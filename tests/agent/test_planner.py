@@ -85,3 +85,20 @@ def test_the_noise_free_most_visited_search_is_mctx_muzero_policy_exactly(tsp_en
     np.testing.assert_array_equal(np.asarray(ours.visit_probs), np.asarray(theirs.action_weights))
     np.testing.assert_array_equal(np.asarray(ours.root_value), np.asarray(theirs.search_tree.summary().value))
     assert len({tuple(row) for row in np.asarray(ours.visit_probs).round(3)}) > 1  # the searches differ per state
+
+
+def test_the_root_qvalues_are_each_root_childs_reward_and_discounted_value():
+    """What the decoder reads as "qvalues": mctx's summary of the root's children, zero where unvisited."""
+    import jax
+
+    from pizero_ray.agent import planner
+    from pizero_ray.config import build_config
+
+    config = build_config("tiny", num_simulations=3, num_abstract_actions=2)
+    params = planner.init(jax.random.PRNGKey(0), config)
+    latent = jax.random.normal(jax.random.PRNGKey(1), (4, config.latent_size))
+    plan = planner.make_planner(config)(params, latent, jax.random.PRNGKey(2))
+    assert plan.root_qvalues.shape == (4, 2)
+    visited = np.asarray(plan.visit_probs) > 0
+    assert np.all(np.asarray(plan.root_qvalues)[~visited] == 0.0)
+    assert np.any(np.asarray(plan.root_qvalues)[visited] != 0.0)
