@@ -68,12 +68,26 @@ def measure(path: Path, ablation: str, episodes: int, seed: int) -> dict:
 
 
 def run_record(path: Path) -> dict:
-    """What a row's run was: its environment, seed, iterations and training minutes."""
+    """What a row's run was: its environment, seed, iterations and training minutes, and what shuffling its plan
+    cost at its last learning-curve evaluation (``None`` without a planner or an evaluation)."""
     config, rows = run_dir.read_config(path), run_dir.read_metrics(path)
+    evaluations = [row for row in rows if "eval_plan_shuffled_score" in row]
+    last = evaluations[-1] if evaluations else None
     return {"env": config.env, "seed": config.seed, "method": config.method, "planner": config.planner,
             "num_simulations": config.num_simulations, "decoder_inputs": list(config.decoder_inputs),
             "iterations": rows[-1]["iteration"] if rows else 0,
-            "training_minutes": round(rows[-1]["wall_time_s"] / 60.0, 2) if rows else 0.0}
+            "training_minutes": round(rows[-1]["wall_time_s"] / 60.0, 2) if rows else 0.0,
+            "last_plan_shuffled_difference":
+                last["eval_plan_shuffled_score"] - last["eval_mean_score"] if last else None,
+            "last_plan_actions_changed": last["eval_plan_actions_changed"] if last else None}
+
+
+def run_key(path: Path, record: dict) -> str:
+    """The ``runs`` map's name for a run: the batch it belongs to (the folder above an experiment's ``runs/``, or
+    the run dir's parent), then environment, method and seed, so runs of two batches never share a name."""
+    parents = path.absolute().parents
+    batch = parents[3].name if len(parents) > 3 and parents[2].name == "runs" else parents[0].name
+    return f"{batch}/{record['env']}/{record['method']}/seed{record['seed']}"
 
 
 def _key(row: dict) -> tuple:
@@ -95,15 +109,17 @@ def update(out: Path, paths: list[Path], config_name: str, default: bool, ablati
         parse_ablation(ablation)  # every name checked before the first measurement
     for path in paths:
         record = run_record(path)
-        data["runs"][f"{record['env']}/{config_name}/seed{record['seed']}"] = record
-        done = {_key(row) for row in data["ablations"]}
+        key = run_key(path, record)
+        data["runs"][key] = dict(record, config=config_name)
+        done = {_key(row): row for row in data["ablations"]}
         for ablation in ablations:
             row = {"env": record["env"], "seed": record["seed"], "config": config_name, "ablation": ablation}
             if _key(row) in done:
+                done[_key(row)]["run"] = key
                 continue
             progress(f"plan_ablations: {path} {ablation}")
             row.update(measure(path, ablation, episodes, seed), default=default, episodes=episodes,
-                       episode_seed=seed)
+                       episode_seed=seed, run=key)
             data["ablations"].append(row)
             data["ablations"].sort(key=_key)
             _write(out, data)
@@ -112,7 +128,8 @@ def update(out: Path, paths: list[Path], config_name: str, default: bool, ablati
 
 
 def _verdict_key(row: dict) -> tuple:
-    return row["env"], row["seed"], row["config"], row["budget"]
+    """A verdict's identity, in the table's order: each environment, configuration and budget's seeds together."""
+    return row["env"], row["config"], row["budget"], row["seed"]
 
 
 def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: bool, budget: str, episodes: int,
@@ -130,12 +147,14 @@ def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: 
         progress(f"plan_ablations: {pizero} against {planner_free} ({budget})")
         env_args = dict(run_dir.read_schedule(pizero).get("eval_env_args") or ())
         found = compare_runs(pizero, planner_free, episodes, seed, env_args=env_args)
-        data["runs"][f"{record['env']}/{config_name}/seed{record['seed']}"] = record
-        data["runs"][f"{record['env']}/planner-free/seed{record['seed']}"] = other
+        data["runs"][run_key(pizero, record)] = dict(record, config=config_name)
+        data["runs"][run_key(planner_free, other)] = dict(other, config="planner-free")
         row.update(paired_difference=found["mean_difference"], ci95=found["ci95"], pizero_score=found["mean_score_a"],
                    planner_free_score=found["mean_score_b"], pizero_iterations=record["iterations"],
-                   planner_free_iterations=other["iterations"], default=default, episodes=episodes,
-                   episode_seed=seed)
+                   planner_free_iterations=other["iterations"],
+                   pizero_plan_shuffled_difference=record["last_plan_shuffled_difference"],
+                   pizero_run=run_key(pizero, record), planner_free_run=run_key(planner_free, other),
+                   default=default, episodes=episodes, episode_seed=seed)
         data["verdicts"].append(row)
         data["verdicts"].sort(key=_verdict_key)
         _write(out, data)
@@ -153,9 +172,21 @@ def _write(out: Path, data: dict) -> None:
 BEGIN, END = "<!-- generated from docs/results/planning.json: {name} -->", "<!-- end generated -->"
 
 
-def _interval(row: dict) -> str:
+SUMMARY = Path(__file__).resolve().parents[1] / "docs" / "results" / "summary.json"
+
+
+def env_decimals(summary: Path = SUMMARY) -> dict:
+    """Each environment's decimals, as every results page writes its scores (docs/results/summary.json)."""
+    return {env["env"]: env["decimals"] for env in json.loads(summary.read_text())["environments"]}
+
+
+def _signed(value: float | None, decimals: int = 3) -> str:
+    return "" if value is None else f"{value:+.{decimals}f}"
+
+
+def _interval(row: dict, decimals: int = 3) -> str:
     low, high = row["ci95"]
-    return f"{row['paired_difference']:+.3f} ({low:+.3f}, {high:+.3f})"
+    return f"{row['paired_difference']:+.{decimals}f} ({low:+.{decimals}f}, {high:+.{decimals}f})"
 
 
 def _column_order(ablation: str) -> tuple:
@@ -164,59 +195,119 @@ def _column_order(ablation: str) -> tuple:
     return (0, PLAN_ABLATIONS.index(search.plan)) if search.plan else (1, search.simulations)
 
 
-def ablation_table(data: dict) -> list[str]:
-    """Per environment and configuration: each ablation's paired difference on every seed, and their mean."""
+def ablation_table(data: dict, decimals: dict) -> list[str]:
+    """Per environment and configuration: each seed's paired difference for every ablation, with its interval,
+    then their mean over the seeds (bold), and the share of actions the shuffled plan changes."""
     ablations = sorted({row["ablation"] for row in data["ablations"]}, key=_column_order)
-    lines = ["| environment | configuration | seeds | " + " | ".join(ablations) + " |",
-             "|---|---|---|" + "---|" * len(ablations)]
-    groups = sorted({(row["env"], row["config"]) for row in data["ablations"]})
-    for env, config in groups:
+    lines = ["| environment | configuration | seed | intact score | " + " | ".join(ablations)
+             + " | actions the shuffled plan changes |", "|---|---|---|---|" + "---|" * (len(ablations) + 1)]
+    groups = {(row["env"], not row["default"], row["config"]) for row in data["ablations"]}
+    for env, _, config in sorted(groups):  # each environment's default first
         rows = [row for row in data["ablations"] if (row["env"], row["config"]) == (env, config)]
+        places = decimals.get(env, 3)
+        shipped = any(row["default"] for row in rows) and config != "default"
+        label = f"{config} (the default)" if shipped else config
         seeds = sorted({row["seed"] for row in rows})
-        cells = []
+        for seed in seeds:
+            found = {row["ablation"]: row for row in rows if row["seed"] == seed}
+            intact = next(iter(found.values()))["intact_mean_score"]
+            shuffled = found.get("shuffled", {}).get("share_actions_changed")
+            cells = [_interval(found[a], places) if a in found else "" for a in ablations]
+            lines.append(f"| {env} | {label} | {seed} | {intact:.{places}f} | " + " | ".join(cells)
+                         + f" | {'' if shuffled is None else f'{shuffled:.1%}'} |")
+        means = []
         for ablation in ablations:
-            found = [row for row in rows if row["ablation"] == ablation]
-            if not found:
-                cells.append("")
-                continue
-            mean = sum(row["paired_difference"] for row in found) / len(found)
-            each = "; ".join(f"seed {row['seed']}: {_interval(row)}" for row in found)
-            cells.append(f"**{mean:+.3f}** ({each})")
-        default = " (default)" if any(row["default"] for row in rows) else ""
-        lines.append(f"| {env} | {config}{default} | {len(seeds)} | " + " | ".join(cells) + " |")
+            found = [row["paired_difference"] for row in rows if row["ablation"] == ablation]
+            below = sum(row["ci95"][1] < 0 for row in rows if row["ablation"] == ablation)
+            means.append(f"**{sum(found) / len(found):+.{places}f}**, {below} of {len(found)} below zero"
+                         if found else "")
+        lines.append(f"| {env} | {label} | mean of {len(seeds)} | | " + " | ".join(means) + " | |")
     return lines
 
 
-def runs_table(data: dict) -> list[str]:
-    lines = ["| run | iterations | training minutes | decoder reads |", "|---|---|---|---|"]
+def runs_table(data: dict, decimals: dict) -> list[str]:
+    lines = ["| run | configuration | iterations | training minutes | decoder reads | plan shuffled at the last "
+             "training evaluation (200 episodes) |", "|---|---|---|---|---|---|"]
     for name, record in sorted(data["runs"].items()):
         reads = ",".join(record["decoder_inputs"]) if record["planner"] != "none" else "state (no planner)"
-        lines.append(f"| {name} | {record['iterations']:,} | {record['training_minutes']:.1f} | {reads} |")
+        lines.append(f"| {name} | {record.get('config', '')} | {record['iterations']:,} | "
+                     f"{record['training_minutes']:.1f} | {reads} | "
+                     f"{_signed(record.get('last_plan_shuffled_difference'), decimals.get(record['env'], 3))} |")
     return lines
 
 
-def verdict_table(data: dict) -> list[str]:
+def verdict_table(data: dict, decimals: dict) -> list[str]:
     lines = ["| environment | configuration | budget | seed | PiZero | planner-free | PiZero minus planner-free, "
-             "95% BCa | iterations (PiZero, planner-free) |", "|---|---|---|---|---|---|---|---|"]
-    for row in data["verdicts"]:
+             "95% BCa | iterations (PiZero, planner-free) | PiZero's plan shuffled (last training evaluation) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    verdicts = sorted(data["verdicts"], key=lambda row: (row["env"], not row["default"], row["config"],
+                                                         row["budget"] != "equal_time", row["seed"]))
+    for index, row in enumerate(verdicts):
+        places = decimals.get(row["env"], 3)
         lines.append(f"| {row['env']} | {row['config']} | {row['budget'].replace('_', ' ')} | {row['seed']} | "
-                     f"{row['pizero_score']:.3f} | {row['planner_free_score']:.3f} | {_interval(row)} | "
-                     f"{row['pizero_iterations']:,}, {row['planner_free_iterations']:,} |")
+                     f"{row['pizero_score']:.{places}f} | {row['planner_free_score']:.{places}f} | "
+                     f"{_interval(row, places)} | {row['pizero_iterations']:,}, {row['planner_free_iterations']:,} | "
+                     f"{_signed(row.get('pizero_plan_shuffled_difference'), places)} |")
+        following = verdicts[index + 1] if index + 1 < len(verdicts) else None
+        if following is None or _verdict_key(following)[:3] != _verdict_key(row)[:3]:
+            lines.append(_verdict_mean(verdicts, row, places))
     return lines
 
 
-TABLES = {"ablations": ablation_table, "verdicts": verdict_table, "runs": runs_table}
+def _verdict_mean(verdicts: list[dict], last: dict, places: int) -> str:
+    """The mean over the seeds of one environment, configuration and budget, and how many seeds' intervals lie
+    above zero (planning pays) and below it (planning costs)."""
+    rows = [row for row in verdicts if _verdict_key(row)[:3] == _verdict_key(last)[:3]]
+    mean = sum(row["paired_difference"] for row in rows) / len(rows)
+    above, below = sum(row["ci95"][0] > 0 for row in rows), sum(row["ci95"][1] < 0 for row in rows)
+    return (f"| {last['env']} | {last['config']} | {last['budget'].replace('_', ' ')} | mean of {len(rows)} | | | "
+            f"**{mean:+.{places}f}**: {above} above zero, {below} below | | |")
 
 
-def render_page(text: str, data: dict) -> str:
-    """``text`` with each generated block (between its markers) replaced by its table from ``data``."""
+def _mean_and_count(rows: list[dict], places: int) -> str:
+    mean = sum(row["paired_difference"] for row in rows) / len(rows)
+    above, below = sum(row["ci95"][0] > 0 for row in rows), sum(row["ci95"][1] < 0 for row in rows)
+    return (f"{mean:+.{places}f} (of {len(rows)} seed{'s' if len(rows) != 1 else ''}: {below} below zero, "
+            f"{above} above)")
+
+
+def summary_lines(data: dict, decimals: dict) -> list[str]:
+    """One line per environment and configuration (the default first): what shuffling the plan and searching with
+    1 simulation cost (mean over seeds, and how many seeds' intervals lie clear of zero), and each budget's
+    verdict against the planner-free agent."""
+    lines = []
+    configs = {(row["env"], row["config"], row["default"]) for row in data["ablations"] + data["verdicts"]}
+    for env, config, default in sorted(configs, key=lambda found: (found[0], not found[2], found[1])):
+        places = decimals.get(env, 3)
+        rows = [row for row in data["ablations"] if (row["env"], row["config"]) == (env, config)]
+        parts = [f"{name} {_mean_and_count(found, places)}"
+                 for ablation, name in (("shuffled", "plan shuffled"), ("simulations=1", "1 simulation"))
+                 if (found := [row for row in rows if row["ablation"] == ablation])]
+        for budget in ("equal_time", "equal_iterations"):
+            found = [row for row in data["verdicts"] if (row["env"], row["config"], row["budget"]) == (
+                env, config, budget)]
+            if found:
+                parts.append(f"PiZero minus the planner-free agent at {budget.replace('_', ' ')} "
+                             f"{_mean_and_count(found, places)}")
+        name = "at the default" if default else f"`{config}`"
+        lines.append(f"- **{env}** {name}: " + "; ".join(parts) + ".")
+    return lines
+
+
+TABLES = {"ablations": ablation_table, "verdicts": verdict_table, "runs": runs_table, "summary": summary_lines}
+
+
+def render_page(text: str, data: dict, decimals: dict | None = None) -> str:
+    """``text`` with each generated block (between its markers) replaced by its table from ``data``; scores at
+    each environment's ``decimals`` (``env_decimals()`` when not given)."""
+    decimals = env_decimals() if decimals is None else decimals
     for name, table in TABLES.items():
         begin = BEGIN.format(name=name)
         if begin not in text:
             continue
         head, rest = text.split(begin, 1)
         _, tail = rest.split(END, 1)
-        text = head + begin + "\n" + "\n".join(table(data)) + "\n" + END + tail
+        text = head + begin + "\n" + "\n".join(table(data, decimals)) + "\n" + END + tail
     return text
 
 

@@ -9,8 +9,9 @@ A generated block sits between ``<!-- generated: NAME (python scripts/render_res
 ``<!-- end generated -->``; the rest of a page is hand-written. The blocks:
 
 - ``results`` (README.md): one row per environment, one column per agent, the target, and "what the plan is
-  worth" from docs/results/planning.json once it is committed (its shuffled-plan and one-simulation paired differences for PiZero
-  at its default configuration, averaged over seeds; "not measured yet" while the file has no such rows);
+  worth" from docs/results/planning.json once it is committed (its shuffled-plan and one-simulation paired
+  differences for PiZero at its default configuration, averaged over seeds, and the runs' training minutes; "not
+  measured yet" while the file has no such rows);
   then which targets are reached and the paired comparisons.
 - ``scores``, ``paired`` and ``hand`` (docs/learning.md): every agent's seeds with their intervals, the paired
   comparisons, and the figures that exist only in the docs.
@@ -133,7 +134,10 @@ def plan_worth(env: dict, planning: dict | None) -> str:
             seeds |= {r["seed"] for r in found}
     if not parts:
         return NOT_MEASURED
-    return f"{', '.join(parts)} ({len(seeds)} seed{'s' if len(seeds) != 1 else ''})"
+    runs = [planning.get("runs", {}).get(r.get("run")) for r in rows]
+    minutes = {round(run["training_minutes"]) for run in runs if run}
+    trained = f", {minutes.pop()} minutes" if len(minutes) == 1 else ""
+    return f"{', '.join(parts)} ({len(seeds)} seed{'s' if len(seeds) != 1 else ''}{trained})"
 
 
 def _target_cell(env: dict) -> str:
@@ -204,7 +208,8 @@ def block_results(summary: dict, planning: dict | None, page: str) -> list[str]:
         name = f"[{env['env']}]({_link(page, env['page'])}) ({env['score']})"
         lines.append(f"| {name} | {_references(env)} | {_target_cell(env)} | " + " | ".join(cells) +
                      f" | {plan_worth(env, planning)} |")
-    lines += ["", "Bold: the best point estimate (the mean where there are several seeds). " + reached_lines(summary)[0]]
+    lines += ["", "Bold: the best point estimate (the mean where there are several seeds). "
+              + reached_lines(summary)[0]]
     paired = paired_lines(summary)
     if paired:
         lines += ["", *paired]

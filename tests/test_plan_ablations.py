@@ -32,7 +32,8 @@ def test_rows_say_what_each_ablation_costs_and_a_second_pass_measures_nothing(bl
     assert shuffled["paired_difference"] == 0.0 and shuffled["ci95"] == [0.0, 0.0]
     assert shuffled["share_changed"] == 0.0 and shuffled["share_actions_changed"] == 0.0
     assert rows["simulations=1"]["share_actions_changed"] is None
-    assert data["runs"]["tsp/blind/seed4"]["iterations"] == 0
+    (record,) = data["runs"].values()
+    assert (record["iterations"], record["config"], record["last_plan_shuffled_difference"]) == (0, "blind", None)
 
     def measured_again(*args):
         raise AssertionError("a row already in the file was measured again")
@@ -55,6 +56,8 @@ def test_verdicts_pair_pizero_with_the_planner_free_run_of_its_seed(blind_run, t
                                 progress=lambda text: None)
     (row,) = data["verdicts"]
     assert (row["env"], row["seed"], row["budget"]) == ("tsp", 4, "equal_time")
+    assert {data["runs"][row["pizero_run"]]["config"], data["runs"][row["planner_free_run"]]["config"]} == {
+        "blind", "planner-free"}
     assert row["paired_difference"] == pytest.approx(row["pizero_score"] - row["planner_free_score"])
     other_seed = tmp_path / "none-seed5"
     run_dir.write_config(other_seed, build_config("tiny", planner="none", seed=5))
@@ -64,14 +67,69 @@ def test_verdicts_pair_pizero_with_the_planner_free_run_of_its_seed(blind_run, t
 
 def test_the_page_is_regenerated_between_its_markers_only():
     data = {"ablations": [
-        {"env": "tsp", "seed": s, "config": "default", "ablation": a, "paired_difference": d, "ci95": [d - 1, d + 1],
-         "default": True} for s, d in ((0, -0.5), (1, -1.5)) for a in ("simulations=1", "shuffled")],
+        {"env": "tsp", "seed": s, "config": "default", "ablation": a, "paired_difference": d, "ci95": [d - 1, d + 0.75],
+         "default": True, "intact_mean_score": -3.0, "share_actions_changed": 0.25 if a == "shuffled" else None}
+        for s, d in ((0, -0.5), (1, -1.5)) for a in ("simulations=1", "shuffled")],
         "verdicts": [], "runs": {}}
     begin = plan_ablations.BEGIN.format(name="ablations")
     page = f"# Planning\n\nbefore\n{begin}\nold table\n{plan_ablations.END}\nafter\n"
-    rendered = plan_ablations.render_page(page, data)
+    rendered = plan_ablations.render_page(page, data, {"tsp": 2})
     assert rendered.startswith("# Planning\n\nbefore\n") and rendered.endswith(f"{plan_ablations.END}\nafter\n")
-    header, _, row = rendered.split(begin)[1].strip().splitlines()[:3]
-    assert header == "| environment | configuration | seeds | shuffled | simulations=1 |"
-    assert row.startswith("| tsp | default (default) | 2 | **-1.000** (seed 0: -0.500 (-1.500, +0.500); seed 1:")
-    assert plan_ablations.render_page(rendered, data) == rendered
+    header, _, seed0, seed1, mean = rendered.split(begin)[1].strip().splitlines()[:5]
+    assert header == ("| environment | configuration | seed | intact score | shuffled | simulations=1 | "
+                      "actions the shuffled plan changes |")
+    assert seed0 == "| tsp | default | 0 | -3.00 | -0.50 (-1.50, +0.25) | -0.50 (-1.50, +0.25) | 25.0% |"
+    assert mean == ("| tsp | default | mean of 2 | | **-1.00**, 1 of 2 below zero | "
+                    "**-1.00**, 1 of 2 below zero | |")
+    assert seed1.startswith("| tsp | default | 1 |")
+    assert plan_ablations.render_page(rendered, data, {"tsp": 2}) == rendered
+
+
+def test_runs_of_two_batches_keep_their_own_names(tmp_path):
+    record = {"env": "collect", "method": "pizero", "seed": 1}
+    in_experiment = tmp_path / "screen" / "runs" / "collect" / "pizero" / "seed1"
+    assert plan_ablations.run_key(in_experiment, record) == "screen/collect/pizero/seed1"
+    assert plan_ablations.run_key(tmp_path / "verdicts" / "run", record) == "verdicts/collect/pizero/seed1"
+
+
+def test_the_planning_page_is_what_its_json_gives():
+    """docs/planning.md's tables are generated from docs/results/planning.json: a hand edit fails here."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    page = (root / "docs" / "planning.md").read_text()
+    data = plan_ablations._load(root / "docs" / "results" / "planning.json")
+    assert plan_ablations.render_page(page, data) == page
+
+
+def test_each_budgets_verdicts_end_with_their_mean_and_how_many_seeds_are_clear_of_zero():
+    def verdict(seed, budget, difference):
+        return {"env": "collect", "seed": seed, "config": "default", "budget": budget, "pizero_score": -4.0,
+                "planner_free_score": -4.0 - difference, "paired_difference": difference,
+                "ci95": [difference - 0.1, difference + 0.1], "pizero_iterations": 500,
+                "planner_free_iterations": 3000, "pizero_plan_shuffled_difference": -0.5, "default": True}
+
+    data = {"verdicts": [verdict(1, "equal_time", -2.0), verdict(0, "equal_iterations", 0.05),
+                         verdict(0, "equal_time", -1.0)]}
+    lines = plan_ablations.verdict_table(data, {"collect": 2})[2:]
+    assert [line.split(" | ")[2:4] for line in lines] == [
+        ["equal time", "0"], ["equal time", "1"], ["equal time", "mean of 2"],
+        ["equal iterations", "0"], ["equal iterations", "mean of 1"]]
+    assert "**-1.50**: 0 above zero, 2 below" in lines[2] and "**+0.05**: 0 above zero, 0 below" in lines[4]
+    assert lines[0].endswith("| -1.00 (-1.10, -0.90) | 500, 3,000 | -0.50 |")
+
+
+def test_the_summary_gives_each_environments_default_and_counts_seeds_clear_of_zero():
+    def ablation(seed, name, difference, default=True):
+        return {"env": "collect", "seed": seed, "config": "default" if default else "other", "ablation": name,
+                "paired_difference": difference, "ci95": [difference - 0.2, difference + 0.2], "default": default}
+
+    data = {"ablations": [ablation(0, "shuffled", -1.0), ablation(1, "shuffled", -0.1),
+                          ablation(0, "simulations=1", 0.5), ablation(0, "shuffled", -9.0, default=False)],
+            "verdicts": [{"env": "collect", "seed": 0, "config": "default", "budget": "equal_time",
+                          "paired_difference": -2.0, "ci95": [-2.1, -1.9], "default": True}]}
+    assert plan_ablations.summary_lines(data, {"collect": 1}) == [
+        "- **collect** at the default: plan shuffled -0.6 (of 2 seeds: 1 below zero, 0 above); 1 simulation +0.5 "
+        "(of 1 seed: 0 below zero, 1 above); PiZero minus the planner-free agent at equal time -2.0 (of 1 seed: "
+        "1 below zero, 0 above).",
+        "- **collect** `other`: plan shuffled -9.0 (of 1 seed: 1 below zero, 0 above)."]

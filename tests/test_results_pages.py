@@ -110,10 +110,14 @@ def test_the_plan_column_is_the_default_configs_mean_over_seeds(tmp_repo):
             _row("tsp", 2, "simulations=1", -0.42), _row("tsp", 0, "zeroed", -0.9),
             _row("tsp", 0, "simulations=30", 0.01), _row("tsp", 3, "shuffled", -5.0, default=False),
             _row("2048", 0, "shuffled", -250.4)]
-    planning.write_text(json.dumps({"ablations": rows, "verdicts": [], "runs": {}}))
+    runs = {f"screen/tsp/pizero/seed{seed}": {"training_minutes": minutes}
+            for seed, minutes in enumerate((10.0, 10.2, 9.9))}
+    for row in rows[:6]:
+        row["run"] = f"screen/tsp/pizero/seed{row['seed']}"
+    planning.write_text(json.dumps({"ablations": rows, "verdicts": [], "runs": runs}))
     render_results.stale(repo=tmp_repo, planning_path=planning, write=True)
     text = (tmp_repo / "README.md").read_text()
-    assert _readme_row(text, "tsp").endswith("| shuffled -0.120, 1 simulation -0.400 (3 seeds) |")
+    assert _readme_row(text, "tsp").endswith("| shuffled -0.120, 1 simulation -0.400 (3 seeds, 10 minutes) |")
     assert _readme_row(text, "2048").endswith("| shuffled -250 (1 seed) |")
     assert _readme_row(text, "collect").endswith("| not measured yet |")
     assert render_results.stale(repo=tmp_repo, planning_path=planning) == []
