@@ -178,10 +178,14 @@ def test_a_wall_clock_budget_stops_with_a_checkpoint_and_resume_raises_it(ray_se
     path = tmp_path / "budget"
     run_dir.write_config(path, config)
 
-    def train(seconds):
+    def train(seconds, at_most=False):
+        # seconds / 60 * 60 can land an ulp either side of `seconds`: the budget must cover `seconds`, or, for a
+        # budget already spent (``at_most``), not pass it
         minutes = seconds / 60
-        while 60.0 * minutes < seconds:  # the round trip can fall an ulp short; the budget must cover `seconds`
+        while 60.0 * minutes < seconds:
             minutes = math.nextafter(minutes, math.inf)
+        while at_most and 60.0 * minutes > seconds:
+            minutes = math.nextafter(minutes, -math.inf)
         options = driver.RunOptions.create(minutes=minutes, workers=1, compile_cache=compile_cache_dir,
                                            checkpoint_every=0, eval_every=1000, eval_every_minutes=1 / 60,
                                            eval_episodes=4)
@@ -201,7 +205,7 @@ def test_a_wall_clock_budget_stops_with_a_checkpoint_and_resume_raises_it(ray_se
     evaluated_at_every_second(rows)
 
     spent = rows[-1]["wall_time_s"]
-    again, _ = train(spent)  # the run's budget is spent: nothing more
+    again, _ = train(spent, at_most=True)  # the run's budget is spent: nothing more
     assert again["iteration"] == first["iteration"] and again["out_of_time"]
     more, later = train(spent + 4.0)  # four more seconds in all
     assert more["iteration"] > first["iteration"] and more["out_of_time"]
