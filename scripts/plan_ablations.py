@@ -28,6 +28,7 @@ the file are kept and not measured again: a batch resumes where it stopped.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 from pathlib import Path
@@ -147,13 +148,14 @@ def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: 
         progress(f"plan_ablations: {pizero} against {planner_free} ({budget})")
         env_args = dict(run_dir.read_schedule(pizero).get("eval_env_args") or ())
         found = compare_runs(pizero, planner_free, episodes, seed, env_args=env_args)
-        data["runs"][run_key(pizero, record)] = dict(record, config=config_name)
-        data["runs"][run_key(planner_free, other)] = dict(other, config="planner-free")
+        pizero_key, planner_free_key = run_key(pizero, record), run_key(planner_free, other)
+        data["runs"][pizero_key] = dict(record, config=config_name)
+        data["runs"][planner_free_key] = dict(other, config="planner-free")
         row.update(paired_difference=found["mean_difference"], ci95=found["ci95"], pizero_score=found["mean_score_a"],
                    planner_free_score=found["mean_score_b"], pizero_iterations=record["iterations"],
                    planner_free_iterations=other["iterations"],
                    pizero_plan_shuffled_difference=record["last_plan_shuffled_difference"],
-                   pizero_run=run_key(pizero, record), planner_free_run=run_key(planner_free, other),
+                   pizero_run=pizero_key, planner_free_run=planner_free_key,
                    default=default, episodes=episodes, episode_seed=seed)
         data["verdicts"].append(row)
         data["verdicts"].sort(key=_verdict_key)
@@ -189,6 +191,12 @@ def _interval(row: dict, decimals: int = 3) -> str:
     return f"{row['paired_difference']:+.{decimals}f} ({low:+.{decimals}f}, {high:+.{decimals}f})"
 
 
+def _seeds_clear_of_zero(rows: list[dict]) -> tuple[float, int, int]:
+    """(mean paired difference, seeds whose interval lies above zero, seeds whose interval lies below it)."""
+    mean = sum(row["paired_difference"] for row in rows) / len(rows)
+    return mean, sum(row["ci95"][0] > 0 for row in rows), sum(row["ci95"][1] < 0 for row in rows)
+
+
 def _column_order(ablation: str) -> tuple:
     """The plan ablations first (shuffled, zeroed), then the budgets by size."""
     search = parse_ablation(ablation)
@@ -217,10 +225,12 @@ def ablation_table(data: dict, decimals: dict) -> list[str]:
                          + f" | {'' if shuffled is None else f'{shuffled:.1%}'} |")
         means = []
         for ablation in ablations:
-            found = [row["paired_difference"] for row in rows if row["ablation"] == ablation]
-            below = sum(row["ci95"][1] < 0 for row in rows if row["ablation"] == ablation)
-            means.append(f"**{sum(found) / len(found):+.{places}f}**, {below} of {len(found)} below zero"
-                         if found else "")
+            found = [row for row in rows if row["ablation"] == ablation]
+            if not found:
+                means.append("")
+                continue
+            mean, _, below = _seeds_clear_of_zero(found)
+            means.append(f"**{mean:+.{places}f}**, {below} of {len(found)} below zero")
         lines.append(f"| {env} | {label} | mean of {len(seeds)} | | " + " | ".join(means) + " | |")
     return lines
 
@@ -242,31 +252,22 @@ def verdict_table(data: dict, decimals: dict) -> list[str]:
              "|---|---|---|---|---|---|---|---|---|"]
     verdicts = sorted(data["verdicts"], key=lambda row: (row["env"], not row["default"], row["config"],
                                                          row["budget"] != "equal_time", row["seed"]))
-    for index, row in enumerate(verdicts):
-        places = decimals.get(row["env"], 3)
-        lines.append(f"| {row['env']} | {row['config']} | {row['budget'].replace('_', ' ')} | {row['seed']} | "
-                     f"{row['pizero_score']:.{places}f} | {row['planner_free_score']:.{places}f} | "
-                     f"{_interval(row, places)} | {row['pizero_iterations']:,}, {row['planner_free_iterations']:,} | "
-                     f"{_signed(row.get('pizero_plan_shuffled_difference'), places)} |")
-        following = verdicts[index + 1] if index + 1 < len(verdicts) else None
-        if following is None or _verdict_key(following)[:3] != _verdict_key(row)[:3]:
-            lines.append(_verdict_mean(verdicts, row, places))
+    for (env, config, budget), group in itertools.groupby(verdicts, key=lambda row: _verdict_key(row)[:3]):
+        rows, places = list(group), decimals.get(env, 3)
+        for row in rows:
+            lines.append(f"| {env} | {config} | {budget.replace('_', ' ')} | {row['seed']} | "
+                         f"{row['pizero_score']:.{places}f} | {row['planner_free_score']:.{places}f} | "
+                         f"{_interval(row, places)} | {row['pizero_iterations']:,}, "
+                         f"{row['planner_free_iterations']:,} | "
+                         f"{_signed(row.get('pizero_plan_shuffled_difference'), places)} |")
+        mean, above, below = _seeds_clear_of_zero(rows)  # planning pays above zero, costs below
+        lines.append(f"| {env} | {config} | {budget.replace('_', ' ')} | mean of {len(rows)} | | | "
+                     f"**{mean:+.{places}f}**: {above} above zero, {below} below | | |")
     return lines
 
 
-def _verdict_mean(verdicts: list[dict], last: dict, places: int) -> str:
-    """The mean over the seeds of one environment, configuration and budget, and how many seeds' intervals lie
-    above zero (planning pays) and below it (planning costs)."""
-    rows = [row for row in verdicts if _verdict_key(row)[:3] == _verdict_key(last)[:3]]
-    mean = sum(row["paired_difference"] for row in rows) / len(rows)
-    above, below = sum(row["ci95"][0] > 0 for row in rows), sum(row["ci95"][1] < 0 for row in rows)
-    return (f"| {last['env']} | {last['config']} | {last['budget'].replace('_', ' ')} | mean of {len(rows)} | | | "
-            f"**{mean:+.{places}f}**: {above} above zero, {below} below | | |")
-
-
 def _mean_and_count(rows: list[dict], places: int) -> str:
-    mean = sum(row["paired_difference"] for row in rows) / len(rows)
-    above, below = sum(row["ci95"][0] > 0 for row in rows), sum(row["ci95"][1] < 0 for row in rows)
+    mean, above, below = _seeds_clear_of_zero(rows)
     return (f"{mean:+.{places}f} (of {len(rows)} seed{'s' if len(rows) != 1 else ''}: {below} below zero, "
             f"{above} above)")
 
