@@ -19,7 +19,9 @@ share of episodes whose score changed, ``share_actions_changed`` (plan
 ablations) the share of the intact agent's actions the ablation changes.
 ``verdict``: PiZero against the planner-free agent of the same environment and
 seed on the same episodes (``pizero compare``), a row of ``verdicts``:
-``paired_difference`` is PiZero minus the planner-free agent. The ``runs`` map
+``paired_difference`` is PiZero minus the planner-free agent. Every row says
+how many ``minutes`` its PiZero run trained, so a configuration's 10-minute
+and 30-minute runs stay apart. The ``runs`` map
 keeps each run's iterations, training minutes and intact score. Rows already in
 the file are kept and not measured again: a batch resumes where it stopped.
 ``page`` writes the tables between docs/planning.md's generated markers.
@@ -83,6 +85,12 @@ def run_record(path: Path) -> dict:
             "last_plan_actions_changed": last["eval_plan_actions_changed"] if last else None}
 
 
+def budget_minutes(record: dict) -> int:
+    """The training budget a run had, in whole minutes: a ``--minutes`` run stops after the iteration under way,
+    so it trains its budget and a fraction of an iteration more."""
+    return int(record["training_minutes"])
+
+
 def run_key(path: Path, record: dict) -> str:
     """The ``runs`` map's name for a run: the batch it belongs to (the folder above an experiment's ``runs/``, or
     the run dir's parent), then environment, method and seed, so runs of two batches never share a name."""
@@ -92,7 +100,7 @@ def run_key(path: Path, record: dict) -> str:
 
 
 def _key(row: dict) -> tuple:
-    return row["env"], row["seed"], row["config"], row["ablation"]
+    return row["env"], row["seed"], row["config"], row["minutes"], row["ablation"]
 
 
 def _load(out: Path) -> dict:
@@ -114,7 +122,8 @@ def update(out: Path, paths: list[Path], config_name: str, default: bool, ablati
         data["runs"][key] = dict(record, config=config_name)
         done = {_key(row): row for row in data["ablations"]}
         for ablation in ablations:
-            row = {"env": record["env"], "seed": record["seed"], "config": config_name, "ablation": ablation}
+            row = {"env": record["env"], "seed": record["seed"], "config": config_name,
+                   "minutes": budget_minutes(record), "ablation": ablation}
             if _key(row) in done:
                 done[_key(row)]["run"] = key
                 continue
@@ -130,7 +139,7 @@ def update(out: Path, paths: list[Path], config_name: str, default: bool, ablati
 
 def _verdict_key(row: dict) -> tuple:
     """A verdict's identity, in the table's order: each environment, configuration and budget's seeds together."""
-    return row["env"], row["config"], row["budget"], row["seed"]
+    return row["env"], row["config"], row["minutes"], row["budget"], row["seed"]
 
 
 def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: bool, budget: str, episodes: int,
@@ -142,7 +151,8 @@ def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: 
         record, other = run_record(pizero), run_record(planner_free)
         if (record["env"], record["seed"]) != (other["env"], other["seed"]) or other["planner"] != "none":
             raise ValueError(f"{planner_free} is not the planner-free run of {pizero}'s environment and seed")
-        row = {"env": record["env"], "seed": record["seed"], "config": config_name, "budget": budget}
+        row = {"env": record["env"], "seed": record["seed"], "config": config_name,
+               "minutes": budget_minutes(record), "budget": budget}
         if _verdict_key(row) in {_verdict_key(done) for done in data["verdicts"]}:
             continue
         progress(f"plan_ablations: {pizero} against {planner_free} ({budget})")
@@ -207,11 +217,12 @@ def ablation_table(data: dict, decimals: dict) -> list[str]:
     """Per environment and configuration: each seed's paired difference for every ablation, with its interval,
     then their mean over the seeds (bold), and the share of actions the shuffled plan changes."""
     ablations = sorted({row["ablation"] for row in data["ablations"]}, key=_column_order)
-    lines = ["| environment | configuration | seed | intact score | " + " | ".join(ablations)
-             + " | actions the shuffled plan changes |", "|---|---|---|---|" + "---|" * (len(ablations) + 1)]
-    groups = {(row["env"], not row["default"], row["config"]) for row in data["ablations"]}
-    for env, _, config in sorted(groups):  # each environment's default first
-        rows = [row for row in data["ablations"] if (row["env"], row["config"]) == (env, config)]
+    lines = ["| environment | configuration | minutes | seed | intact score | " + " | ".join(ablations)
+             + " | actions the shuffled plan changes |", "|---|---|---|---|---|" + "---|" * (len(ablations) + 1)]
+    groups = {(row["env"], not row["default"], row["config"], row["minutes"]) for row in data["ablations"]}
+    for env, _, config, minutes in sorted(groups):  # each environment's default first
+        rows = [row for row in data["ablations"] if (row["env"], row["config"], row["minutes"]) == (
+            env, config, minutes)]
         places = decimals.get(env, 3)
         shipped = any(row["default"] for row in rows) and config != "default"
         label = f"{config} (the default)" if shipped else config
@@ -221,7 +232,7 @@ def ablation_table(data: dict, decimals: dict) -> list[str]:
             intact = next(iter(found.values()))["intact_mean_score"]
             shuffled = found.get("shuffled", {}).get("share_actions_changed")
             cells = [_interval(found[a], places) if a in found else "" for a in ablations]
-            lines.append(f"| {env} | {label} | {seed} | {intact:.{places}f} | " + " | ".join(cells)
+            lines.append(f"| {env} | {label} | {minutes} | {seed} | {intact:.{places}f} | " + " | ".join(cells)
                          + f" | {'' if shuffled is None else f'{shuffled:.1%}'} |")
         means = []
         for ablation in ablations:
@@ -231,7 +242,7 @@ def ablation_table(data: dict, decimals: dict) -> list[str]:
                 continue
             mean, _, below = _seeds_clear_of_zero(found)
             means.append(f"**{mean:+.{places}f}**, {below} of {len(found)} below zero")
-        lines.append(f"| {env} | {label} | mean of {len(seeds)} | | " + " | ".join(means) + " | |")
+        lines.append(f"| {env} | {label} | {minutes} | mean of {len(seeds)} | | " + " | ".join(means) + " | |")
     return lines
 
 
@@ -247,21 +258,21 @@ def runs_table(data: dict, decimals: dict) -> list[str]:
 
 
 def verdict_table(data: dict, decimals: dict) -> list[str]:
-    lines = ["| environment | configuration | budget | seed | PiZero | planner-free | PiZero minus planner-free, "
-             "95% BCa | iterations (PiZero, planner-free) | PiZero's plan shuffled (last training evaluation) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| environment | configuration | minutes | budget | seed | PiZero | planner-free | PiZero minus "
+             "planner-free, 95% BCa | iterations (PiZero, planner-free) | PiZero's plan shuffled (last training "
+             "evaluation) |", "|---|---|---|---|---|---|---|---|---|---|"]
     verdicts = sorted(data["verdicts"], key=lambda row: (row["env"], not row["default"], row["config"],
-                                                         row["budget"] != "equal_time", row["seed"]))
-    for (env, config, budget), group in itertools.groupby(verdicts, key=lambda row: _verdict_key(row)[:3]):
+                                                         row["minutes"], row["budget"] != "equal_time", row["seed"]))
+    for (env, config, minutes, budget), group in itertools.groupby(verdicts, key=lambda row: _verdict_key(row)[:4]):
         rows, places = list(group), decimals.get(env, 3)
         for row in rows:
-            lines.append(f"| {env} | {config} | {budget.replace('_', ' ')} | {row['seed']} | "
+            lines.append(f"| {env} | {config} | {minutes} | {budget.replace('_', ' ')} | {row['seed']} | "
                          f"{row['pizero_score']:.{places}f} | {row['planner_free_score']:.{places}f} | "
                          f"{_interval(row, places)} | {row['pizero_iterations']:,}, "
                          f"{row['planner_free_iterations']:,} | "
                          f"{_signed(row.get('pizero_plan_shuffled_difference'), places)} |")
         mean, above, below = _seeds_clear_of_zero(rows)  # planning pays above zero, costs below
-        lines.append(f"| {env} | {config} | {budget.replace('_', ' ')} | mean of {len(rows)} | | | "
+        lines.append(f"| {env} | {config} | {minutes} | {budget.replace('_', ' ')} | mean of {len(rows)} | | | "
                      f"**{mean:+.{places}f}**: {above} above zero, {below} below | | |")
     return lines
 
@@ -273,24 +284,26 @@ def _mean_and_count(rows: list[dict], places: int) -> str:
 
 
 def summary_lines(data: dict, decimals: dict) -> list[str]:
-    """One line per environment and configuration (the default first): what shuffling the plan and searching with
-    1 simulation cost (mean over seeds, and how many seeds' intervals lie clear of zero), and each budget's
-    verdict against the planner-free agent."""
+    """One line per environment, configuration and training minutes (the default first): what shuffling the
+    plan and searching with 1 simulation cost (mean over seeds, and how many seeds' intervals lie clear of zero),
+    and each budget's verdict against the planner-free agent."""
     lines = []
-    configs = {(row["env"], row["config"], row["default"]) for row in data["ablations"] + data["verdicts"]}
-    for env, config, default in sorted(configs, key=lambda found: (found[0], not found[2], found[1])):
+    configs = {(row["env"], row["config"], row["minutes"], row["default"])
+               for row in data["ablations"] + data["verdicts"]}
+    for env, config, minutes, default in sorted(configs, key=lambda found: (found[0], not found[3], *found[1:3])):
         places = decimals.get(env, 3)
-        rows = [row for row in data["ablations"] if (row["env"], row["config"]) == (env, config)]
+        rows = [row for row in data["ablations"] if (row["env"], row["config"], row["minutes"]) == (
+            env, config, minutes)]
         parts = [f"{name} {_mean_and_count(found, places)}"
                  for ablation, name in (("shuffled", "plan shuffled"), ("simulations=1", "1 simulation"))
                  if (found := [row for row in rows if row["ablation"] == ablation])]
         for budget in ("equal_time", "equal_iterations"):
-            found = [row for row in data["verdicts"] if (row["env"], row["config"], row["budget"]) == (
-                env, config, budget)]
+            found = [row for row in data["verdicts"] if (row["env"], row["config"], row["minutes"], row["budget"]) == (
+                env, config, minutes, budget)]
             if found:
                 parts.append(f"PiZero minus the planner-free agent at {budget.replace('_', ' ')} "
                              f"{_mean_and_count(found, places)}")
-        name = "at the default" if default else f"`{config}`"
+        name = f"{'at the default' if default else f'`{config}`'}, {minutes} minutes"
         lines.append(f"- **{env}** {name}: " + "; ".join(parts) + ".")
     return lines
 

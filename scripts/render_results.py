@@ -120,11 +120,14 @@ def readme_cell(env: dict, agent: dict, best: dict) -> str:
 
 
 def plan_worth(env: dict, planning: dict | None) -> str:
-    """What the plan is worth for PiZero at its default configuration: the mean over seeds of the paired
-    difference (ablated minus intact) with the plan shuffled and with 1 simulation."""
+    """What the plan is worth for PiZero at its default configuration, trained for the longest budget measured:
+    the mean over seeds of the paired difference (ablated minus intact) with the plan shuffled and with 1
+    simulation."""
     if not planning:
         return NOT_MEASURED
     rows = [r for r in planning.get("ablations", []) if r["env"] == env["env"] and r.get("default")]
+    minutes = max((r["minutes"] for r in rows), default=None)  # the longest-trained agents
+    rows = [r for r in rows if r["minutes"] == minutes]
     parts, seeds = [], set()
     for ablation, name in (("shuffled", "shuffled"), ("simulations=1", "1 simulation")):
         found = [r for r in rows if r["ablation"] == ablation]
@@ -134,10 +137,7 @@ def plan_worth(env: dict, planning: dict | None) -> str:
             seeds |= {r["seed"] for r in found}
     if not parts:
         return NOT_MEASURED
-    runs = [planning.get("runs", {}).get(r.get("run")) for r in rows]
-    minutes = {round(run["training_minutes"]) for run in runs if run}
-    trained = f", {minutes.pop()} minutes" if len(minutes) == 1 else ""
-    return f"{', '.join(parts)} ({len(seeds)} seed{'s' if len(seeds) != 1 else ''}{trained})"
+    return f"{', '.join(parts)} ({len(seeds)} seed{'s' if len(seeds) != 1 else ''}, {minutes} minutes)"
 
 
 def _target_cell(env: dict) -> str:

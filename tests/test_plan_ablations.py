@@ -29,6 +29,7 @@ def test_rows_say_what_each_ablation_costs_and_a_second_pass_measures_nothing(bl
     assert set(rows) == {"shuffled", "simulations=1"}
     shuffled = rows["shuffled"]
     assert (shuffled["env"], shuffled["seed"], shuffled["config"], shuffled["default"]) == ("tsp", 4, "blind", False)
+    assert shuffled["minutes"] == 0  # an untrained run
     assert shuffled["paired_difference"] == 0.0 and shuffled["ci95"] == [0.0, 0.0]
     assert shuffled["share_changed"] == 0.0 and shuffled["share_actions_changed"] == 0.0
     assert rows["simulations=1"]["share_actions_changed"] is None
@@ -67,7 +68,8 @@ def test_verdicts_pair_pizero_with_the_planner_free_run_of_its_seed(blind_run, t
 
 def test_the_page_is_regenerated_between_its_markers_only():
     data = {"ablations": [
-        {"env": "tsp", "seed": s, "config": "default", "ablation": a, "paired_difference": d, "ci95": [d - 1, d + 0.75],
+        {"env": "tsp", "seed": s, "config": "default", "minutes": 10, "ablation": a, "paired_difference": d,
+         "ci95": [d - 1, d + 0.75],
          "default": True, "intact_mean_score": -3.0, "share_actions_changed": 0.25 if a == "shuffled" else None}
         for s, d in ((0, -0.5), (1, -1.5)) for a in ("simulations=1", "shuffled")],
         "verdicts": [], "runs": {}}
@@ -76,12 +78,12 @@ def test_the_page_is_regenerated_between_its_markers_only():
     rendered = plan_ablations.render_page(page, data, {"tsp": 2})
     assert rendered.startswith("# Planning\n\nbefore\n") and rendered.endswith(f"{plan_ablations.END}\nafter\n")
     header, _, seed0, seed1, mean = rendered.split(begin)[1].strip().splitlines()[:5]
-    assert header == ("| environment | configuration | seed | intact score | shuffled | simulations=1 | "
+    assert header == ("| environment | configuration | minutes | seed | intact score | shuffled | simulations=1 | "
                       "actions the shuffled plan changes |")
-    assert seed0 == "| tsp | default | 0 | -3.00 | -0.50 (-1.50, +0.25) | -0.50 (-1.50, +0.25) | 25.0% |"
-    assert mean == ("| tsp | default | mean of 2 | | **-1.00**, 1 of 2 below zero | "
+    assert seed0 == "| tsp | default | 10 | 0 | -3.00 | -0.50 (-1.50, +0.25) | -0.50 (-1.50, +0.25) | 25.0% |"
+    assert mean == ("| tsp | default | 10 | mean of 2 | | **-1.00**, 1 of 2 below zero | "
                     "**-1.00**, 1 of 2 below zero | |")
-    assert seed1.startswith("| tsp | default | 1 |")
+    assert seed1.startswith("| tsp | default | 10 | 1 |")
     assert plan_ablations.render_page(rendered, data, {"tsp": 2}) == rendered
 
 
@@ -103,33 +105,38 @@ def test_the_planning_page_is_what_its_json_gives():
 
 
 def test_each_budgets_verdicts_end_with_their_mean_and_how_many_seeds_are_clear_of_zero():
-    def verdict(seed, budget, difference):
-        return {"env": "collect", "seed": seed, "config": "default", "budget": budget, "pizero_score": -4.0,
+    def verdict(seed, budget, difference, minutes=10):
+        return {"env": "collect", "seed": seed, "config": "default", "minutes": minutes, "budget": budget,
+                "pizero_score": -4.0,
                 "planner_free_score": -4.0 - difference, "paired_difference": difference,
                 "ci95": [difference - 0.1, difference + 0.1], "pizero_iterations": 500,
                 "planner_free_iterations": 3000, "pizero_plan_shuffled_difference": -0.5, "default": True}
 
     data = {"verdicts": [verdict(1, "equal_time", -2.0), verdict(0, "equal_iterations", 0.05),
-                         verdict(0, "equal_time", -1.0)]}
+                         verdict(0, "equal_time", -1.0), verdict(0, "equal_time", 0.5, minutes=30)]}
     lines = plan_ablations.verdict_table(data, {"collect": 2})[2:]
-    assert [line.split(" | ")[2:4] for line in lines] == [
-        ["equal time", "0"], ["equal time", "1"], ["equal time", "mean of 2"],
-        ["equal iterations", "0"], ["equal iterations", "mean of 1"]]
+    assert [line.split(" | ")[2:5] for line in lines] == [
+        ["10", "equal time", "0"], ["10", "equal time", "1"], ["10", "equal time", "mean of 2"],
+        ["10", "equal iterations", "0"], ["10", "equal iterations", "mean of 1"],
+        ["30", "equal time", "0"], ["30", "equal time", "mean of 1"]]
     assert "**-1.50**: 0 above zero, 2 below" in lines[2] and "**+0.05**: 0 above zero, 0 below" in lines[4]
     assert lines[0].endswith("| -1.00 (-1.10, -0.90) | 500, 3,000 | -0.50 |")
 
 
 def test_the_summary_gives_each_environments_default_and_counts_seeds_clear_of_zero():
-    def ablation(seed, name, difference, default=True):
-        return {"env": "collect", "seed": seed, "config": "default" if default else "other", "ablation": name,
-                "paired_difference": difference, "ci95": [difference - 0.2, difference + 0.2], "default": default}
+    def ablation(seed, name, difference, default=True, minutes=10):
+        return {"env": "collect", "seed": seed, "config": "default" if default else "other", "minutes": minutes,
+                "ablation": name, "paired_difference": difference, "ci95": [difference - 0.2, difference + 0.2],
+                "default": default}
 
     data = {"ablations": [ablation(0, "shuffled", -1.0), ablation(1, "shuffled", -0.1),
-                          ablation(0, "simulations=1", 0.5), ablation(0, "shuffled", -9.0, default=False)],
-            "verdicts": [{"env": "collect", "seed": 0, "config": "default", "budget": "equal_time",
+                          ablation(0, "simulations=1", 0.5), ablation(0, "shuffled", -9.0, default=False),
+                          ablation(0, "shuffled", -3.0, minutes=30)],
+            "verdicts": [{"env": "collect", "seed": 0, "config": "default", "minutes": 10, "budget": "equal_time",
                           "paired_difference": -2.0, "ci95": [-2.1, -1.9], "default": True}]}
     assert plan_ablations.summary_lines(data, {"collect": 1}) == [
-        "- **collect** at the default: plan shuffled -0.6 (of 2 seeds: 1 below zero, 0 above); 1 simulation +0.5 "
-        "(of 1 seed: 0 below zero, 1 above); PiZero minus the planner-free agent at equal time -2.0 (of 1 seed: "
-        "1 below zero, 0 above).",
-        "- **collect** `other`: plan shuffled -9.0 (of 1 seed: 1 below zero, 0 above)."]
+        "- **collect** at the default, 10 minutes: plan shuffled -0.6 (of 2 seeds: 1 below zero, 0 above); "
+        "1 simulation +0.5 (of 1 seed: 0 below zero, 1 above); PiZero minus the planner-free agent at equal time "
+        "-2.0 (of 1 seed: 1 below zero, 0 above).",
+        "- **collect** at the default, 30 minutes: plan shuffled -3.0 (of 1 seed: 1 below zero, 0 above).",
+        "- **collect** `other`, 10 minutes: plan shuffled -9.0 (of 1 seed: 1 below zero, 0 above)."]

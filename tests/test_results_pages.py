@@ -75,10 +75,10 @@ def test_numbers_are_written_one_way():
     assert render_results.as_written(-2.0) == "-2.0" and render_results.as_written(5000) == "5,000"
 
 
-def _row(env, seed, ablation, difference, default=True):
+def _row(env, seed, ablation, difference, default=True, minutes=10):
     return {"env": env, "seed": seed, "config": "default" if default else "other", "ablation": ablation,
             "paired_difference": difference, "ci95": [difference - 0.1, difference + 0.1], "share_changed": 0.5,
-            "share_actions_changed": None, "default": default}
+            "share_actions_changed": None, "default": default, "minutes": minutes}
 
 
 def _readme_row(text: str, env: str) -> str:
@@ -103,22 +103,18 @@ def test_without_planning_json_the_plan_column_says_not_measured_yet(tmp_repo):
         assert _readme_row(text, env).endswith("| not measured yet |")
 
 
-def test_the_plan_column_is_the_default_configs_mean_over_seeds(tmp_repo):
+def test_the_plan_column_is_the_default_configs_mean_over_seeds_at_its_longest_budget(tmp_repo):
     planning = tmp_repo / "planning.json"
     rows = [_row("tsp", 0, "shuffled", -0.10), _row("tsp", 1, "shuffled", -0.14), _row("tsp", 2, "shuffled", -0.12),
             _row("tsp", 0, "simulations=1", -0.40), _row("tsp", 1, "simulations=1", -0.38),
             _row("tsp", 2, "simulations=1", -0.42), _row("tsp", 0, "zeroed", -0.9),
             _row("tsp", 0, "simulations=30", 0.01), _row("tsp", 3, "shuffled", -5.0, default=False),
-            _row("2048", 0, "shuffled", -250.4)]
-    runs = {f"screen/tsp/pizero/seed{seed}": {"training_minutes": minutes}
-            for seed, minutes in enumerate((10.0, 10.2, 9.9))}
-    for row in rows[:6]:
-        row["run"] = f"screen/tsp/pizero/seed{row['seed']}"
-    planning.write_text(json.dumps({"ablations": rows, "verdicts": [], "runs": runs}))
+            _row("2048", 0, "shuffled", -250.4, minutes=30), _row("2048", 0, "shuffled", -9.0, minutes=10)]
+    planning.write_text(json.dumps({"ablations": rows, "verdicts": [], "runs": {}}))
     render_results.stale(repo=tmp_repo, planning_path=planning, write=True)
     text = (tmp_repo / "README.md").read_text()
     assert _readme_row(text, "tsp").endswith("| shuffled -0.120, 1 simulation -0.400 (3 seeds, 10 minutes) |")
-    assert _readme_row(text, "2048").endswith("| shuffled -250 (1 seed) |")
+    assert _readme_row(text, "2048").endswith("| shuffled -250 (1 seed, 30 minutes) |")
     assert _readme_row(text, "collect").endswith("| not measured yet |")
     assert render_results.stale(repo=tmp_repo, planning_path=planning) == []
     assert render_results.stale(repo=tmp_repo, planning_path=tmp_repo / "absent.json") == ["README.md"]
