@@ -31,11 +31,24 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from paired_results import (  # noqa: E402
+    budget_minutes,
+    env_decimals,
+    interval,
+    load,
+    mean_and_count,
+    render_blocks,
+    run_key,
+    seeds_clear_of_zero,
+    signed,
+    write,
+)
 
 from pizero_ray.config import PLAN_ABLATIONS  # noqa: E402
 from pizero_ray.evaluation.runs import Search, compare_runs, evaluate_run  # noqa: E402
@@ -85,29 +98,12 @@ def run_record(path: Path) -> dict:
             "last_plan_actions_changed": last["eval_plan_actions_changed"] if last else None}
 
 
-def budget_minutes(record: dict) -> int:
-    """The training budget a run had, in whole minutes: a ``--minutes`` run stops after the iteration under way,
-    so it trains its budget and a fraction of an iteration more."""
-    return int(record["training_minutes"])
-
-
-def run_key(path: Path, record: dict) -> str:
-    """The ``runs`` map's name for a run: the batch it belongs to (the folder above an experiment's ``runs/``, or
-    the run dir's parent), then environment, method and seed, so runs of two batches never share a name."""
-    parents = path.absolute().parents
-    batch = parents[3].name if len(parents) > 3 and parents[2].name == "runs" else parents[0].name
-    return f"{batch}/{record['env']}/{record['method']}/seed{record['seed']}"
-
-
 def _key(row: dict) -> tuple:
     return row["env"], row["seed"], row["config"], row["minutes"], row["ablation"]
 
 
 def _load(out: Path) -> dict:
-    data = json.loads(out.read_text()) if out.exists() else {}
-    for name, empty in (("ablations", []), ("verdicts", []), ("runs", {})):
-        data.setdefault(name, empty)
-    return data
+    return load(out, ("ablations", "verdicts"))
 
 
 def update(out: Path, paths: list[Path], config_name: str, default: bool, ablations: list[str], episodes: int,
@@ -132,8 +128,8 @@ def update(out: Path, paths: list[Path], config_name: str, default: bool, ablati
                        episode_seed=seed, run=key)
             data["ablations"].append(row)
             data["ablations"].sort(key=_key)
-            _write(out, data)
-    _write(out, data)
+            write(out, data)
+    write(out, data)
     return data
 
 
@@ -169,42 +165,13 @@ def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: 
                    default=default, episodes=episodes, episode_seed=seed)
         data["verdicts"].append(row)
         data["verdicts"].sort(key=_verdict_key)
-        _write(out, data)
+        write(out, data)
     return data
-
-
-def _write(out: Path, data: dict) -> None:
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
-    tmp.replace(out)
 
 
 # ------------------------------------------------------------------ the page's tables
 
-BEGIN, END = "<!-- generated from docs/results/planning.json: {name} -->", "<!-- end generated -->"
-
-
-SUMMARY = Path(__file__).resolve().parents[1] / "docs" / "results" / "summary.json"
-
-
-def env_decimals(summary: Path = SUMMARY) -> dict:
-    """Each environment's decimals, as every results page writes its scores (docs/results/summary.json)."""
-    return {env["env"]: env["decimals"] for env in json.loads(summary.read_text())["environments"]}
-
-
-def _signed(value: float | None, decimals: int = 3) -> str:
-    return "" if value is None else f"{value:+.{decimals}f}"
-
-
-def _interval(row: dict, decimals: int = 3) -> str:
-    low, high = row["ci95"]
-    return f"{row['paired_difference']:+.{decimals}f} ({low:+.{decimals}f}, {high:+.{decimals}f})"
-
-
-def _seeds_clear_of_zero(rows: list[dict]) -> tuple[float, int, int]:
-    """(mean paired difference, seeds whose interval lies above zero, seeds whose interval lies below it)."""
-    mean = sum(row["paired_difference"] for row in rows) / len(rows)
-    return mean, sum(row["ci95"][0] > 0 for row in rows), sum(row["ci95"][1] < 0 for row in rows)
+BEGIN = "<!-- generated from docs/results/planning.json: {name} -->"
 
 
 def _column_order(ablation: str) -> tuple:
@@ -231,7 +198,7 @@ def ablation_table(data: dict, decimals: dict) -> list[str]:
             found = {row["ablation"]: row for row in rows if row["seed"] == seed}
             intact = next(iter(found.values()))["intact_mean_score"]
             shuffled = found.get("shuffled", {}).get("share_actions_changed")
-            cells = [_interval(found[a], places) if a in found else "" for a in ablations]
+            cells = [interval(found[a], places) if a in found else "" for a in ablations]
             lines.append(f"| {env} | {label} | {minutes} | {seed} | {intact:.{places}f} | " + " | ".join(cells)
                          + f" | {'' if shuffled is None else f'{shuffled:.1%}'} |")
         means = []
@@ -240,7 +207,7 @@ def ablation_table(data: dict, decimals: dict) -> list[str]:
             if not found:
                 means.append("")
                 continue
-            mean, _, below = _seeds_clear_of_zero(found)
+            mean, _, below = seeds_clear_of_zero(found)
             means.append(f"**{mean:+.{places}f}**, {below} of {len(found)} below zero")
         lines.append(f"| {env} | {label} | {minutes} | mean of {len(seeds)} | | " + " | ".join(means) + " | |")
     return lines
@@ -253,7 +220,7 @@ def runs_table(data: dict, decimals: dict) -> list[str]:
         reads = ",".join(record["decoder_inputs"]) if record["planner"] != "none" else "state (no planner)"
         lines.append(f"| {name} | {record.get('config', '')} | {record['iterations']:,} | "
                      f"{record['training_minutes']:.1f} | {reads} | "
-                     f"{_signed(record.get('last_plan_shuffled_difference'), decimals.get(record['env'], 3))} |")
+                     f"{signed(record.get('last_plan_shuffled_difference'), decimals.get(record['env'], 3))} |")
     return lines
 
 
@@ -268,19 +235,13 @@ def verdict_table(data: dict, decimals: dict) -> list[str]:
         for row in rows:
             lines.append(f"| {env} | {config} | {minutes} | {budget.replace('_', ' ')} | {row['seed']} | "
                          f"{row['pizero_score']:.{places}f} | {row['planner_free_score']:.{places}f} | "
-                         f"{_interval(row, places)} | {row['pizero_iterations']:,}, "
+                         f"{interval(row, places)} | {row['pizero_iterations']:,}, "
                          f"{row['planner_free_iterations']:,} | "
-                         f"{_signed(row.get('pizero_plan_shuffled_difference'), places)} |")
-        mean, above, below = _seeds_clear_of_zero(rows)  # planning pays above zero, costs below
+                         f"{signed(row.get('pizero_plan_shuffled_difference'), places)} |")
+        mean, above, below = seeds_clear_of_zero(rows)  # planning pays above zero, costs below
         lines.append(f"| {env} | {config} | {minutes} | {budget.replace('_', ' ')} | mean of {len(rows)} | | | "
                      f"**{mean:+.{places}f}**: {above} above zero, {below} below | | |")
     return lines
-
-
-def _mean_and_count(rows: list[dict], places: int) -> str:
-    mean, above, below = _seeds_clear_of_zero(rows)
-    return (f"{mean:+.{places}f} (of {len(rows)} seed{'s' if len(rows) != 1 else ''}: {below} below zero, "
-            f"{above} above)")
 
 
 def summary_lines(data: dict, decimals: dict) -> list[str]:
@@ -294,7 +255,7 @@ def summary_lines(data: dict, decimals: dict) -> list[str]:
         places = decimals.get(env, 3)
         rows = [row for row in data["ablations"] if (row["env"], row["config"], row["minutes"]) == (
             env, config, minutes)]
-        parts = [f"{name} {_mean_and_count(found, places)}"
+        parts = [f"{name} {mean_and_count(found, places)}"
                  for ablation, name in (("shuffled", "plan shuffled"), ("simulations=1", "1 simulation"))
                  if (found := [row for row in rows if row["ablation"] == ablation])]
         for budget in ("equal_time", "equal_iterations"):
@@ -302,7 +263,7 @@ def summary_lines(data: dict, decimals: dict) -> list[str]:
                 env, config, minutes, budget)]
             if found:
                 parts.append(f"PiZero minus the planner-free agent at {budget.replace('_', ' ')} "
-                             f"{_mean_and_count(found, places)}")
+                             f"{mean_and_count(found, places)}")
         name = f"{'at the default' if default else f'`{config}`'}, {minutes} minutes"
         lines.append(f"- **{env}** {name}: " + "; ".join(parts) + ".")
     return lines
@@ -314,15 +275,7 @@ TABLES = {"ablations": ablation_table, "verdicts": verdict_table, "runs": runs_t
 def render_page(text: str, data: dict, decimals: dict | None = None) -> str:
     """``text`` with each generated block (between its markers) replaced by its table from ``data``; scores at
     each environment's ``decimals`` (``env_decimals()`` when not given)."""
-    decimals = env_decimals() if decimals is None else decimals
-    for name, table in TABLES.items():
-        begin = BEGIN.format(name=name)
-        if begin not in text:
-            continue
-        head, rest = text.split(begin, 1)
-        _, tail = rest.split(END, 1)
-        text = head + begin + "\n" + "\n".join(table(data, decimals)) + "\n" + END + tail
-    return text
+    return render_blocks(text, BEGIN, TABLES, data, env_decimals() if decimals is None else decimals)
 
 
 def main(argv: list[str] | None = None) -> int:

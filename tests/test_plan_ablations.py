@@ -10,6 +10,7 @@ from pizero_ray.storage import run_dir
 from tests.scripts_loading import load_script
 
 plan_ablations = load_script("plan_ablations")
+paired_results = load_script("paired_results")
 
 
 @pytest.fixture(scope="module")
@@ -74,9 +75,9 @@ def test_the_page_is_regenerated_between_its_markers_only():
         for s, d in ((0, -0.5), (1, -1.5)) for a in ("simulations=1", "shuffled")],
         "verdicts": [], "runs": {}}
     begin = plan_ablations.BEGIN.format(name="ablations")
-    page = f"# Planning\n\nbefore\n{begin}\nold table\n{plan_ablations.END}\nafter\n"
+    page = f"# Planning\n\nbefore\n{begin}\nold table\n{paired_results.END}\nafter\n"
     rendered = plan_ablations.render_page(page, data, {"tsp": 2})
-    assert rendered.startswith("# Planning\n\nbefore\n") and rendered.endswith(f"{plan_ablations.END}\nafter\n")
+    assert rendered.startswith("# Planning\n\nbefore\n") and rendered.endswith(f"{paired_results.END}\nafter\n")
     header, _, seed0, seed1, mean = rendered.split(begin)[1].strip().splitlines()[:5]
     assert header == ("| environment | configuration | minutes | seed | intact score | shuffled | simulations=1 | "
                       "actions the shuffled plan changes |")

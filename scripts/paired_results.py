@@ -1,0 +1,86 @@
+"""What the docs' paired-result scripts share: a resumable JSON of rows, each run's name and training budget, the
+figures' formatting, and the page blocks generated from the JSON.
+
+Used by scripts/plan_ablations.py (PiZero against its own ablations and the planner-free agent) and
+scripts/es_levers.py (an ES setting against the default). Not a package module: the scripts put this folder on
+``sys.path``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Callable
+
+SUMMARY = Path(__file__).resolve().parents[1] / "docs" / "results" / "summary.json"
+END = "<!-- end generated -->"
+
+
+def budget_minutes(record: dict) -> int:
+    """The training budget a run had, in whole minutes: a ``--minutes`` run stops after the iteration under way,
+    so it trains its budget and a fraction of an iteration more."""
+    return int(record["training_minutes"])
+
+
+def run_key(path: Path, record: dict) -> str:
+    """The ``runs`` map's name for a run: the batch it belongs to (the folder above an experiment's ``runs/``, or
+    the run dir's parent), then environment, method and seed, so runs of two batches never share a name."""
+    parents = path.absolute().parents
+    batch = parents[3].name if len(parents) > 3 and parents[2].name == "runs" else parents[0].name
+    return f"{batch}/{record['env']}/{record['method']}/seed{record['seed']}"
+
+
+def load(out: Path, lists: tuple[str, ...]) -> dict:
+    """The JSON at ``out`` (empty when absent), with each of ``lists`` and the ``runs`` map present."""
+    data = json.loads(out.read_text()) if out.exists() else {}
+    for name in lists:
+        data.setdefault(name, [])
+    data.setdefault("runs", {})
+    return data
+
+
+def write(out: Path, data: dict) -> None:
+    """Atomically: a batch stopped mid-write leaves the previous file."""
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+    tmp.replace(out)
+
+
+def env_decimals(summary: Path = SUMMARY) -> dict:
+    """Each environment's decimals, as every results page writes its scores (docs/results/summary.json)."""
+    return {env["env"]: env["decimals"] for env in json.loads(summary.read_text())["environments"]}
+
+
+def signed(value: float | None, decimals: int = 3) -> str:
+    return "" if value is None else f"{value:+.{decimals}f}"
+
+
+def interval(row: dict, decimals: int = 3) -> str:
+    """A row's paired difference with its 95% interval."""
+    low, high = row["ci95"]
+    return f"{row['paired_difference']:+.{decimals}f} ({low:+.{decimals}f}, {high:+.{decimals}f})"
+
+
+def seeds_clear_of_zero(rows: list[dict]) -> tuple[float, int, int]:
+    """(mean paired difference, seeds whose interval lies above zero, seeds whose interval lies below it)."""
+    mean = sum(row["paired_difference"] for row in rows) / len(rows)
+    return mean, sum(row["ci95"][0] > 0 for row in rows), sum(row["ci95"][1] < 0 for row in rows)
+
+
+def mean_and_count(rows: list[dict], places: int) -> str:
+    mean, above, below = seeds_clear_of_zero(rows)
+    return (f"{mean:+.{places}f} (of {len(rows)} seed{'s' if len(rows) != 1 else ''}: {below} below zero, "
+            f"{above} above)")
+
+
+def render_blocks(text: str, begin_format: str, tables: dict[str, Callable[[dict, dict], list[str]]], data: dict,
+                  decimals: dict) -> str:
+    """``text`` with each generated block (from ``begin_format`` naming it, to ``END``) replaced by its table."""
+    for name, table in tables.items():
+        begin = begin_format.format(name=name)
+        if begin not in text:
+            continue
+        head, rest = text.split(begin, 1)
+        _, tail = rest.split(END, 1)
+        text = head + begin + "\n" + "\n".join(table(data, decimals)) + "\n" + END + tail
+    return text
