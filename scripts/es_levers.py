@@ -13,7 +13,8 @@ episodes (``pizero compare``, on the default run's evaluation parameters). A row
 ``paired_difference`` (the setting's mean score minus the default's), its 95% BCa interval, both scores and
 iteration counts, the setting run's training ``minutes`` and both runs' names in the ``runs`` map. Rows
 already in the file are kept and not measured again: a batch resumes where it stopped.
-``page`` writes the tables between the page's generated markers.
+``page`` writes the tables between the page's generated markers (a block named after an environment holds
+that environment's rows, for its own page).
 """
 
 from __future__ import annotations
@@ -126,9 +127,17 @@ def summary_lines(data: dict, decimals: dict) -> list[str]:
 TABLES = {"comparisons": comparison_table, "summary": summary_lines}
 
 
+def _one_environment(env: str):
+    """The comparison table of one environment's rows, for its own page."""
+    return lambda data, decimals: comparison_table(
+        {"comparisons": [row for row in data["comparisons"] if row["env"] == env]}, decimals)
+
+
 def render_page(text: str, data: dict, decimals: dict | None = None) -> str:
-    """``text`` with each generated block replaced by its table from ``data``."""
-    return render_blocks(text, BEGIN, TABLES, data, env_decimals() if decimals is None else decimals)
+    """``text`` with each generated block replaced by its table from ``data``: ``summary`` and ``comparisons``
+    for every environment, or a block named after one environment for its rows alone."""
+    tables = dict(TABLES) | {env: _one_environment(env) for env in {row["env"] for row in data["comparisons"]}}
+    return render_blocks(text, BEGIN, tables, data, env_decimals() if decimals is None else decimals)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -9,6 +9,7 @@ from pizero_ray.storage import run_dir
 from tests.scripts_loading import load_script
 
 es_levers = load_script("es_levers")
+paired_results = load_script("paired_results")
 
 
 def _run(path, **settings):
@@ -61,6 +62,11 @@ def test_each_setting_ends_with_its_mean_and_how_many_seeds_are_clear_of_zero():
         ["ranks", "10", "0"], ["ranks", "10", "mean of 1"]]
     assert lines[0].endswith("| -2.895 | -2.900 | +0.005 (-0.005, +0.015) | 4,000, 4,500 |")
     assert "**+0.013**: 1 above zero, 0 below" in lines[2]
+    begin = es_levers.BEGIN.format(name="tsp")
+    page = es_levers.render_page(f"{begin}\n{paired_results.END}\n",
+                                 data | {"comparisons": data["comparisons"] + [dict(row(0, "x", 1.0), env="flp")]},
+                                 {"tsp": 3, "flp": 4})
+    assert "| tsp | es | common | 10 | mean of 2 |" in page and "flp" not in page
     assert es_levers.summary_lines(data, {"tsp": 3})[1] == (
         "- **tsp**, es, `ranks` for 10 minutes, minus the default: -0.030 (of 1 seed: 1 below zero, 0 above).")
 
