@@ -33,9 +33,11 @@ from paired_results import (  # noqa: E402
     interval,
     load,
     mean_and_count,
+    parse_pairs,
     render_blocks,
     run_key,
     seeds_clear_of_zero,
+    trained,
     write,
 )
 
@@ -51,9 +53,7 @@ def run_record(path: Path) -> dict:
     config, rows = run_dir.read_config(path), run_dir.read_metrics(path)
     return {"env": config.env, "seed": config.seed, "method": config.method, "planner": config.planner,
             "fitness_shaping": config.fitness_shaping, "common_episodes": config.common_episodes,
-            "episodes_per_member": config.episodes_per_member,
-            "iterations": rows[-1]["iteration"] if rows else 0,
-            "training_minutes": round(rows[-1]["wall_time_s"] / 60.0, 2) if rows else 0.0}
+            "episodes_per_member": config.episodes_per_member, **trained(rows)}
 
 
 def _key(row: dict) -> tuple:
@@ -95,14 +95,19 @@ def compare(out: Path, pairs: list[tuple[Path, Path]], setting: str, episodes: i
 
 # ------------------------------------------------------------------ the page's tables
 
+def _groups(data: dict):
+    """Each (environment, method, setting, minutes) with its rows, in the table's order."""
+    rows = sorted(data["comparisons"], key=_key)
+    return ((group, list(found)) for group, found in itertools.groupby(rows, key=lambda row: _key(row)[:4]))
+
+
 def comparison_table(data: dict, decimals: dict) -> list[str]:
     """Per environment, method, setting and minutes: each seed's paired difference, then their mean (bold) and how
     many seeds' intervals lie above zero (the setting ahead) and below it."""
     lines = ["| environment | method | setting | minutes | seed | with the setting | default | setting minus default, "
              "95% BCa | iterations (setting, default) |", "|---|---|---|---|---|---|---|---|---|"]
-    for (env, method, setting, minutes), group in itertools.groupby(
-            sorted(data["comparisons"], key=_key), key=lambda row: _key(row)[:4]):
-        rows, places = list(group), decimals.get(env, 3)
+    for (env, method, setting, minutes), rows in _groups(data):
+        places = decimals.get(env, 3)
         for row in rows:
             lines.append(f"| {env} | {method} | {setting} | {minutes} | {row['seed']} | "
                          f"{row['setting_score']:.{places}f} | {row['default_score']:.{places}f} | "
@@ -117,10 +122,9 @@ def summary_lines(data: dict, decimals: dict) -> list[str]:
     """One line per environment, method, setting and minutes: the setting's mean paired difference from the
     default, and how many seeds' intervals lie clear of zero."""
     lines = []
-    for (env, method, setting, minutes), group in itertools.groupby(
-            sorted(data["comparisons"], key=_key), key=lambda row: _key(row)[:4]):
+    for (env, method, setting, minutes), rows in _groups(data):
         lines.append(f"- **{env}**, {method}, `{setting}` for {minutes} minutes, minus the default: "
-                     f"{mean_and_count(list(group), decimals.get(env, 3))}.")
+                     f"{mean_and_count(rows, decimals.get(env, 3))}.")
     return lines
 
 
@@ -154,9 +158,10 @@ def main(argv: list[str] | None = None) -> int:
     page.add_argument("--page", type=Path, required=True)
     args = parser.parse_args(argv)
     if args.command == "compare":
-        pairs = [tuple(Path(side).absolute() for side in pair.split("=", 1)) for pair in args.pairs]
-        if any(len(pair) != 2 for pair in pairs):
-            parser.error("each pair is SETTING_RUN=DEFAULT_RUN")
+        try:
+            pairs = parse_pairs(args.pairs)
+        except ValueError as error:
+            parser.error(str(error))
         compare(args.out, pairs, args.setting, args.episodes, args.seed,
                 progress=lambda text: print(text, file=sys.stderr, flush=True))
     else:

@@ -16,6 +16,12 @@ SUMMARY = Path(__file__).resolve().parents[1] / "docs" / "results" / "summary.js
 END = "<!-- end generated -->"
 
 
+def trained(rows: list[dict]) -> dict:
+    """How far a run trained, from its metrics rows: its last iteration and its training minutes (0 for none)."""
+    return {"iterations": rows[-1]["iteration"] if rows else 0,
+            "training_minutes": round(rows[-1]["wall_time_s"] / 60.0, 2) if rows else 0.0}
+
+
 def budget_minutes(record: dict) -> int:
     """The training budget a run had, in whole minutes: a ``--minutes`` run stops after the iteration under way,
     so it trains its budget and a fraction of an iteration more."""
@@ -28,6 +34,15 @@ def run_key(path: Path, record: dict) -> str:
     parents = path.absolute().parents
     batch = parents[3].name if len(parents) > 3 and parents[2].name == "runs" else parents[0].name
     return f"{batch}/{record['env']}/{record['method']}/seed{record['seed']}"
+
+
+def parse_pairs(texts: list[str]) -> list[tuple[Path, Path]]:
+    """Command-line pairs ``A=B`` as two absolute paths each."""
+    pairs = [tuple(Path(side).absolute() for side in text.split("=", 1)) for text in texts]
+    for text, pair in zip(texts, pairs):
+        if len(pair) != 2:
+            raise ValueError(f"{text!r} is no pair: write RUN_A=RUN_B")
+    return pairs
 
 
 def load(out: Path, lists: tuple[str, ...]) -> dict:

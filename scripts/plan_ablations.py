@@ -43,10 +43,12 @@ from paired_results import (  # noqa: E402
     interval,
     load,
     mean_and_count,
+    parse_pairs,
     render_blocks,
     run_key,
     seeds_clear_of_zero,
     signed,
+    trained,
     write,
 )
 
@@ -91,8 +93,7 @@ def run_record(path: Path) -> dict:
     last = evaluations[-1] if evaluations else None
     return {"env": config.env, "seed": config.seed, "method": config.method, "planner": config.planner,
             "num_simulations": config.num_simulations, "decoder_inputs": list(config.decoder_inputs),
-            "iterations": rows[-1]["iteration"] if rows else 0,
-            "training_minutes": round(rows[-1]["wall_time_s"] / 60.0, 2) if rows else 0.0,
+            **trained(rows),
             "last_plan_shuffled_difference":
                 last["eval_plan_shuffled_score"] - last["eval_mean_score"] if last else None,
             "last_plan_actions_changed": last["eval_plan_actions_changed"] if last else None}
@@ -302,7 +303,10 @@ def main(argv: list[str] | None = None) -> int:
         update(args.out, [Path(path).absolute() for path in args.runs], args.config, args.default,
                args.ablations.split(","), args.episodes, args.seed, progress=say)
     elif args.command == "verdict":
-        pairs = [tuple(Path(side).absolute() for side in pair.split("=", 1)) for pair in args.runs]
+        try:
+            pairs = parse_pairs(args.runs)
+        except ValueError as error:
+            parser.error(str(error))
         judge(args.out, pairs, args.config, args.default, args.budget, args.episodes, args.seed, progress=say)
     else:
         args.page.write_text(render_page(args.page.read_text(), _load(args.out)))
