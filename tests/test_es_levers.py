@@ -71,11 +71,16 @@ def test_each_setting_ends_with_its_mean_and_how_many_seeds_are_clear_of_zero():
         "- **tsp**, es, `ranks` for 10 minutes, minus the default: -0.030 (of 1 seed: 1 below zero, 0 above).")
 
 
-def test_the_learning_page_is_what_its_json_gives():
-    """docs/learning.md's lever tables are generated from docs/results/es_levers.json: a hand edit fails here."""
+def test_every_page_with_lever_tables_is_what_its_json_gives():
+    """docs/learning.md's lever tables, and each environment page's block, are generated from
+    docs/results/es_levers.json: a hand edit fails here."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    page = (root / "docs" / "learning.md").read_text()
     data = es_levers.load(root / "docs" / "results" / "es_levers.json", ("comparisons",))
-    assert es_levers.render_page(page, data) == page
+    marker = es_levers.BEGIN.split("{")[0]
+    pages = [path for path in sorted((root / "docs").glob("*.md")) if marker in path.read_text()]
+    assert root / "docs" / "learning.md" in pages and len(pages) >= 3
+    for path in pages:
+        page = path.read_text()
+        assert es_levers.render_page(page, data) == page, path.name
