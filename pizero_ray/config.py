@@ -120,8 +120,8 @@ class Config:
              "none: the raw scores")
     # Common random numbers across the population: every pair plays the same episodes (new ones each
     # iteration), so a pair's difference is the perturbation's effect on those episodes, not on easier ones.
-    # Off by default: not ahead of the default on TSP or flp-mean (10 minutes) or flp (30 minutes, 3 seeds;
-    # docs/learning.md).
+    # Off by default: no comparison has it ahead of the default yet (TSP, flp, flp-mean, and Collect's 30-minute
+    # runs; docs/learning.md has each environment's figures).
     common_episodes: bool = setting(
         False, flag="--common-episodes",
         help="every pair of an iteration plays the same episodes (default: each pair its own)")
