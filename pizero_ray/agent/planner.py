@@ -83,6 +83,8 @@ def make_planner(config: Config) -> Planner:
             num_simulations=config.num_simulations, dirichlet_fraction=config.root_noise,
             pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base, discount=discount,
             loop_fn=mcts.LOOP_FNS[config.simulation_loop])
+    if config.planner == "gumbel" and config.num_simulations == k and config.root_noise == 0:
+        return functools.partial(every_action_once, num_actions=k, discount=discount)
     # PiZero acts on the most visited abstract action (first index on ties), drawing nothing for it. mctx's
     # search still breaks ties between children with a tiny uniform draw from the key (muzero_action_selection):
     # with no root noise the agent is a deterministic function of (parameters, key).
@@ -90,6 +92,35 @@ def make_planner(config: Config) -> Planner:
                               pb_c_init=config.pb_c_init, pb_c_base=config.pb_c_base, most_visited=True,
                               max_considered_actions=k, simulation_loop=config.simulation_loop)
     return functools.partial(search, policy=policy, recurrent_fn=_recurrent_fn(k, discount))
+
+
+# mctx's qtransform_completed_by_mix_value defaults: Q-values rescaled to [0, 1] over the root's children, then
+# weighed by (maxvisit_init + the most visits of a child) x value_scale.
+_MAXVISIT_INIT, _VALUE_SCALE, _RESCALE_EPSILON = 50.0, 0.1, 1e-8
+
+
+def every_action_once(params: networks.Params, latent: jax.Array, key: jax.Array, *, num_actions: int,
+                      discount: float) -> PlanResult:
+    """Gumbel MuZero's search with one simulation per abstract action and no Gumbel noise, without the tree.
+
+    With that budget sequential halving's first round visits every root action once, and each simulation
+    ends at the child it expands: the search is a one-step lookahead. Here the k children come from one
+    batched call of the model instead of k simulations through mctx's tree (which costs most of PiZero's
+    iteration on the CPU). The result is mctx's up to float rounding (the root value is averaged in another
+    order), which tests/agent/test_planner.py checks.
+    """
+    del key  # no noise is drawn; mctx breaks ties by the first index, as argmax does
+    value, logits = predict(params, latent)
+    each_action = jnp.broadcast_to(jnp.arange(num_actions)[:, None], (num_actions, latent.shape[0]))
+    reward, child = jax.vmap(lambda action: dynamics(params, latent, action, num_actions))(each_action)
+    child_value, _ = predict(params, child)
+    qvalues = jnp.transpose(reward + discount * child_value)  # [B, k], as mctx's tree.qvalues
+    low, high = jnp.min(qvalues, -1, keepdims=True), jnp.max(qvalues, -1, keepdims=True)
+    completed = (_MAXVISIT_INIT + 1.0) * _VALUE_SCALE * ((qvalues - low) / jnp.maximum(high - low, _RESCALE_EPSILON))
+    score = jnp.maximum(-1e9, logits - jnp.max(logits, -1, keepdims=True) + completed)  # seq_halving's score
+    root_value = (value + jnp.sum(qvalues, -1)) / (num_actions + 1.0)  # the root's visits: itself and k children
+    return PlanResult(jnp.argmax(score, -1).astype(jnp.int32), jax.nn.softmax(logits + completed), root_value,
+                      qvalues)
 
 
 def no_search(params: networks.Params, latent: jax.Array, key: jax.Array, *, num_actions: int) -> PlanResult:

@@ -4,7 +4,7 @@ import mctx
 import numpy as np
 import pytest
 
-from pizero_ray.agent import make_agent, planner
+from pizero_ray.agent import make_agent, mcts, planner
 from pizero_ray.config import ConfigError, build_config
 
 
@@ -102,3 +102,29 @@ def test_the_root_qvalues_are_each_root_childs_reward_and_discounted_value():
     visited = np.asarray(plan.visit_probs) > 0
     assert np.all(np.asarray(plan.root_qvalues)[~visited] == 0.0)
     assert np.any(np.asarray(plan.root_qvalues)[visited] != 0.0)
+
+
+@pytest.mark.parametrize("num_abstract_actions", [2, 3, 4])
+def test_gumbel_with_one_simulation_per_abstract_action_is_mctx_search_without_the_tree(tsp_env, num_abstract_actions):
+    k = num_abstract_actions
+    config, params, latent = _setup(tsp_env, batch=64, planner="gumbel", num_simulations=k, num_abstract_actions=k,
+                                    chance_outcomes=0)
+    key = jax.random.PRNGKey(4)
+    assert planner.make_planner(config).func is planner.every_action_once
+    ours = jax.jit(lambda p, z: planner.make_planner(config)(p, z, key))(params, latent)
+    policy = mcts.make_policy("gumbel", k, 0.0, max_considered_actions=k)
+    theirs = jax.jit(lambda p, z: planner.search(p, z, key, policy=policy,
+                                                 recurrent_fn=planner._recurrent_fn(k, config.abstract_discount)))(
+        params, latent)
+    np.testing.assert_array_equal(np.asarray(ours.abstract_action), np.asarray(theirs.abstract_action))
+    for name in ("visit_probs", "root_value", "root_qvalues"):
+        np.testing.assert_allclose(np.asarray(getattr(ours, name)), np.asarray(getattr(theirs, name)), rtol=1e-5,
+                                   atol=1e-6, err_msg=name)
+    assert len(set(np.asarray(ours.abstract_action).tolist())) > 1  # the choice depends on the state
+
+
+def test_gumbel_keeps_the_tree_with_noise_or_another_budget(tsp_env):
+    for overrides in ({"num_simulations": 5}, {"root_noise": 1.0}):
+        config = build_config("tiny", planner="gumbel", num_abstract_actions=4, chance_outcomes=0,
+                              **{"num_simulations": 4, **overrides})
+        assert planner.make_planner(config).func is planner.search

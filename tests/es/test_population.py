@@ -105,7 +105,7 @@ def test_low_rank_members_play_exactly_theta_plus_the_expanded_noise(tsp_env, en
     ("tsp", {}),
     ("examples.corridor:make", {}),  # episodes that end before the horizon
     ("2048", {"chance_outcomes": 2, "env_args": {"horizon": 30}}),  # chance nodes
-    ("tsp", {"planner": "gumbel"}),
+    ("tsp", {"planner": "gumbel", "num_simulations": 3}),  # more simulations than abstract actions: mctx's tree
 ])
 def test_the_loops_compiled_do_not_change_the_scores(env_name, extra):
     """How the episode loop and the simulations are compiled (config.episode_loop, config.simulation_loop)
