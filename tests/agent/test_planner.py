@@ -123,7 +123,7 @@ def test_gumbel_with_one_simulation_per_abstract_action_is_mctx_search_without_t
     assert len(set(np.asarray(ours.abstract_action).tolist())) > 1  # the choice depends on the state
 
 
-def test_gumbel_keeps_the_tree_with_noise_or_another_budget(tsp_env):
+def test_gumbel_keeps_the_tree_with_noise_or_another_budget():
     for overrides in ({"num_simulations": 5}, {"root_noise": 1.0}):
         config = build_config("tiny", planner="gumbel", num_abstract_actions=4, chance_outcomes=0,
                               **{"num_simulations": 4, **overrides})
