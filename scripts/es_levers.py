@@ -34,6 +34,7 @@ from paired_results import (  # noqa: E402
     load,
     mean_and_count,
     parse_pairs,
+    remember_run,
     render_blocks,
     run_key,
     seeds_clear_of_zero,
@@ -78,11 +79,11 @@ def compare(out: Path, pairs: list[tuple[Path, Path]], setting: str, episodes: i
                "minutes": budget_minutes(record)}
         if _key(row) in {_key(done) for done in data["comparisons"]}:
             continue
+        remember_run(data["runs"], setting_key, with_setting, dict(record, setting=setting))
+        remember_run(data["runs"], default_key, default, dict(other, setting="default"))
         progress(f"es_levers: {with_setting} against {default}")
         env_args = dict(run_dir.read_schedule(default).get("eval_env_args") or ())
         found = compare_runs(with_setting, default, episodes, seed, env_args=env_args)
-        data["runs"][setting_key] = dict(record, setting=setting)
-        data["runs"][default_key] = dict(other, setting="default")
         row.update(paired_difference=found["mean_difference"], ci95=found["ci95"], setting_score=found["mean_score_a"],
                    default_score=found["mean_score_b"], setting_iterations=record["iterations"],
                    default_iterations=other["iterations"], setting_run=setting_key, default_run=default_key,

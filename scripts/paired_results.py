@@ -29,11 +29,24 @@ def budget_minutes(record: dict) -> int:
 
 
 def run_key(path: Path, record: dict) -> str:
-    """The ``runs`` map's name for a run: the batch it belongs to (the folder above an experiment's ``runs/``, or
-    the run dir's parent), then environment, method and seed, so runs of two batches never share a name."""
+    """The ``runs`` map's name for a run: the batch it belongs to, then its place there. In an experiment's
+    layout (BATCH/runs/A/B/RUN) that is its folders as named, usually ENV/METHOD/seedS, so two configurations
+    of one seed in their own folders keep their own names; a run dir directly in a batch's folder is named by
+    its environment, method and seed."""
     parents = path.absolute().parents
-    batch = parents[3].name if len(parents) > 3 and parents[2].name == "runs" else parents[0].name
-    return f"{batch}/{record['env']}/{record['method']}/seed{record['seed']}"
+    if len(parents) > 3 and parents[2].name == "runs":
+        return f"{parents[3].name}/{parents[1].name}/{parents[0].name}/{path.name}"
+    return f"{parents[0].name}/{record['env']}/{record['method']}/seed{record['seed']}"
+
+
+def remember_run(runs: dict, key: str, path: Path, entry: dict) -> None:
+    """Stores ``entry`` under ``key`` in a JSON's ``runs`` map; a different run under a taken name is refused,
+    since the rows naming it would then mix two runs' figures."""
+    known = runs.get(key)
+    if known is not None and any(known[name] != entry[name] for name in known.keys() & entry.keys()):
+        raise ValueError(f"{path} would be named {key}, the name of another run already measured: keep each "
+                         "configuration's runs in their own folder")
+    runs[key] = entry
 
 
 def parse_pairs(texts: list[str]) -> list[tuple[Path, Path]]:

@@ -44,6 +44,7 @@ from paired_results import (  # noqa: E402
     load,
     mean_and_count,
     parse_pairs,
+    remember_run,
     render_blocks,
     run_key,
     seeds_clear_of_zero,
@@ -116,7 +117,7 @@ def update(out: Path, paths: list[Path], config_name: str, default: bool, ablati
     for path in paths:
         record = run_record(path)
         key = run_key(path, record)
-        data["runs"][key] = dict(record, config=config_name)
+        remember_run(data["runs"], key, path, dict(record, config=config_name))
         done = {_key(row): row for row in data["ablations"]}
         for ablation in ablations:
             row = {"env": record["env"], "seed": record["seed"], "config": config_name,
@@ -152,12 +153,12 @@ def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: 
                "minutes": budget_minutes(record), "budget": budget}
         if _verdict_key(row) in {_verdict_key(done) for done in data["verdicts"]}:
             continue
+        pizero_key, planner_free_key = run_key(pizero, record), run_key(planner_free, other)
+        remember_run(data["runs"], pizero_key, pizero, dict(record, config=config_name))
+        remember_run(data["runs"], planner_free_key, planner_free, dict(other, config="planner-free"))
         progress(f"plan_ablations: {pizero} against {planner_free} ({budget})")
         env_args = dict(run_dir.read_schedule(pizero).get("eval_env_args") or ())
         found = compare_runs(pizero, planner_free, episodes, seed, env_args=env_args)
-        pizero_key, planner_free_key = run_key(pizero, record), run_key(planner_free, other)
-        data["runs"][pizero_key] = dict(record, config=config_name)
-        data["runs"][planner_free_key] = dict(other, config="planner-free")
         row.update(paired_difference=found["mean_difference"], ci95=found["ci95"], pizero_score=found["mean_score_a"],
                    planner_free_score=found["mean_score_b"], pizero_iterations=record["iterations"],
                    planner_free_iterations=other["iterations"],

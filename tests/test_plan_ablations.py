@@ -2,6 +2,7 @@
 evaluation (eval --plan, compare --simulations-a)."""
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -93,6 +94,23 @@ def test_runs_of_two_batches_keep_their_own_names(tmp_path):
     in_experiment = tmp_path / "screen" / "runs" / "collect" / "pizero" / "seed1"
     assert plan_ablations.run_key(in_experiment, record) == "screen/collect/pizero/seed1"
     assert plan_ablations.run_key(tmp_path / "verdicts" / "run", record) == "verdicts/collect/pizero/seed1"
+
+
+def test_two_configurations_of_one_seed_in_one_batch_keep_their_own_names(tmp_path):
+    record = {"env": "collect", "method": "pizero", "seed": 0}
+    batch = tmp_path / "screens" / "runs" / "collect"
+    names = {plan_ablations.run_key(batch / folder / "seed0", record) for folder in ("gumbel", "readplan")}
+    assert names == {"screens/collect/gumbel/seed0", "screens/collect/readplan/seed0"}
+
+
+def test_a_second_run_under_a_taken_name_is_refused():
+    runs = {}
+    first = {"env": "collect", "seed": 0, "planner": "gumbel", "iterations": 10, "config": "gumbel"}
+    paired_results.remember_run(runs, "b/collect/pizero/seed0", Path("a"), first)
+    paired_results.remember_run(runs, "b/collect/pizero/seed0", Path("a"), dict(first))  # the same run again
+    with pytest.raises(ValueError, match="b/collect/pizero/seed0"):
+        paired_results.remember_run(runs, "b/collect/pizero/seed0", Path("c"), dict(first, planner="muzero"))
+    assert runs == {"b/collect/pizero/seed0": first}
 
 
 def test_the_planning_page_is_what_its_json_gives():
