@@ -115,7 +115,6 @@ def test_a_second_run_under_a_taken_name_is_refused():
 
 def test_the_planning_page_is_what_its_json_gives():
     """docs/planning.md's tables are generated from docs/results/planning.json: a hand edit fails here."""
-    from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
     page = (root / "docs" / "planning.md").read_text()
