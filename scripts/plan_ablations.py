@@ -6,6 +6,8 @@ Usage::
         [--ablations shuffled,zeroed,simulations=1,simulations=30] [--episodes 1000] RUN_DIR ...
     python scripts/plan_ablations.py verdict --out docs/results/planning.json --config default --default \
         --budget equal_time PIZERO_RUN=PLANNER_FREE_RUN ...
+    python scripts/plan_ablations.py choose --out docs/results/planning.json --config NAME --against NAME \
+        CANDIDATE_RUN=INCUMBENT_RUN ...
     python scripts/plan_ablations.py page --out docs/results/planning.json --page docs/planning.md
 
 ``ablate``: for each run dir and ablation, one row of the JSON's ``ablations``
@@ -19,7 +21,10 @@ share of episodes whose score changed, ``share_actions_changed`` (plan
 ablations) the share of the intact agent's actions the ablation changes.
 ``verdict``: PiZero against the planner-free agent of the same environment and
 seed on the same episodes (``pizero compare``), a row of ``verdicts``:
-``paired_difference`` is PiZero minus the planner-free agent. Every row says
+``paired_difference`` is PiZero minus the planner-free agent. ``choose``: one
+PiZero configuration against another (the default it would replace), both
+trained the same minutes on the same seed, a row of ``choices``:
+``paired_difference`` is ``config`` minus ``against``. Every row says
 how many ``minutes`` its PiZero run trained, so a configuration's 10-minute
 and 30-minute runs stay apart. The ``runs`` map
 keeps each run's iterations, training minutes and intact score. Rows already in
@@ -104,8 +109,20 @@ def _key(row: dict) -> tuple:
     return row["env"], row["seed"], row["config"], row["minutes"], row["ablation"]
 
 
+def _measured(rows: list[dict], identity, row: dict, run_field: str, run: str) -> bool:
+    """Whether ``row`` (its ``identity``) is already among ``rows``, measured on ``run``. A row of that identity
+    measured on another run is refused: the page would show one run's figure under the other's name."""
+    for done in rows:
+        if identity(done) == identity(row):
+            if done[run_field] != run:
+                raise ValueError(f"{run} would repeat the row {identity(row)} measured on {done[run_field]}: name "
+                                 "its configuration otherwise, or train another seed")
+            return True
+    return False
+
+
 def _load(out: Path) -> dict:
-    return load(out, ("ablations", "verdicts"))
+    return load(out, ("ablations", "verdicts", "choices"))
 
 
 def update(out: Path, paths: list[Path], config_name: str, default: bool, ablations: list[str], episodes: int,
@@ -118,12 +135,10 @@ def update(out: Path, paths: list[Path], config_name: str, default: bool, ablati
         record = run_record(path)
         key = run_key(path, record)
         remember_run(data["runs"], key, path, dict(record, config=config_name))
-        done = {_key(row): row for row in data["ablations"]}
         for ablation in ablations:
             row = {"env": record["env"], "seed": record["seed"], "config": config_name,
                    "minutes": budget_minutes(record), "ablation": ablation}
-            if _key(row) in done:
-                done[_key(row)]["run"] = key
+            if _measured(data["ablations"], _key, row, "run", key):
                 continue
             progress(f"plan_ablations: {path} {ablation}")
             row.update(measure(path, ablation, episodes, seed), default=default, episodes=episodes,
@@ -151,9 +166,9 @@ def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: 
             raise ValueError(f"{planner_free} is not the planner-free run of {pizero}'s environment and seed")
         row = {"env": record["env"], "seed": record["seed"], "config": config_name,
                "minutes": budget_minutes(record), "budget": budget}
-        if _verdict_key(row) in {_verdict_key(done) for done in data["verdicts"]}:
-            continue
         pizero_key, planner_free_key = run_key(pizero, record), run_key(planner_free, other)
+        if _measured(data["verdicts"], _verdict_key, row, "pizero_run", pizero_key):
+            continue
         remember_run(data["runs"], pizero_key, pizero, dict(record, config=config_name))
         remember_run(data["runs"], planner_free_key, planner_free, dict(other, config="planner-free"))
         progress(f"plan_ablations: {pizero} against {planner_free} ({budget})")
@@ -167,6 +182,42 @@ def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: 
                    default=default, episodes=episodes, episode_seed=seed)
         data["verdicts"].append(row)
         data["verdicts"].sort(key=_verdict_key)
+        write(out, data)
+    return data
+
+
+def _choice_key(row: dict) -> tuple:
+    return row["env"], row["config"], row["against"], row["minutes"], row["seed"]
+
+
+def choose(out: Path, pairs: list[tuple[Path, Path]], config_name: str, against: str, episodes: int, seed: int,
+           progress=print) -> dict:
+    """A PiZero configuration against another, of the same environment and seed and trained the same minutes
+    (equal time), paired on the same episodes: rows of ``choices`` (``config`` minus ``against``), each measured
+    once. How a configuration earns the default."""
+    data = _load(out)
+    for candidate, incumbent in pairs:
+        record, other = run_record(candidate), run_record(incumbent)
+        if (record["env"], record["seed"], budget_minutes(record)) != (
+                other["env"], other["seed"], budget_minutes(other)) or "none" in (record["planner"], other["planner"]):
+            raise ValueError(f"{incumbent} is not a PiZero run of {candidate}'s environment and seed trained as many "
+                             "minutes")
+        row = {"env": record["env"], "seed": record["seed"], "config": config_name, "against": against,
+               "minutes": budget_minutes(record)}
+        candidate_key, incumbent_key = run_key(candidate, record), run_key(incumbent, other)
+        if _measured(data["choices"], _choice_key, row, "config_run", candidate_key):
+            continue
+        remember_run(data["runs"], candidate_key, candidate, dict(record, config=config_name))
+        remember_run(data["runs"], incumbent_key, incumbent, dict(other, config=against))
+        progress(f"plan_ablations: {candidate} against {incumbent}")
+        env_args = dict(run_dir.read_schedule(candidate).get("eval_env_args") or ())
+        found = compare_runs(candidate, incumbent, episodes, seed, env_args=env_args)
+        row.update(paired_difference=found["mean_difference"], ci95=found["ci95"], config_score=found["mean_score_a"],
+                   against_score=found["mean_score_b"], config_iterations=record["iterations"],
+                   against_iterations=other["iterations"], config_run=candidate_key, against_run=incumbent_key,
+                   episodes=episodes, episode_seed=seed)
+        data["choices"].append(row)
+        data["choices"].sort(key=_choice_key)
         write(out, data)
     return data
 
@@ -246,6 +297,23 @@ def verdict_table(data: dict, decimals: dict) -> list[str]:
     return lines
 
 
+def choice_table(data: dict, decimals: dict) -> list[str]:
+    """Each configuration against the one it was measured to replace, seed by seed, then the mean."""
+    lines = ["| environment | configuration | against | minutes | seed | configuration's score | against's score | "
+             "difference, 95% BCa | iterations (configuration, against) |", "|---|---|---|---|---|---|---|---|---|"]
+    for (env, config, against, minutes), group in itertools.groupby(sorted(data["choices"], key=_choice_key),
+                                                                      key=lambda row: _choice_key(row)[:4]):
+        rows, places = list(group), decimals.get(env, 3)
+        for row in rows:
+            lines.append(f"| {env} | {config} | {against} | {minutes} | {row['seed']} | "
+                         f"{row['config_score']:.{places}f} | {row['against_score']:.{places}f} | "
+                         f"{interval(row, places)} | {row['config_iterations']:,}, {row['against_iterations']:,} |")
+        mean, above, below = seeds_clear_of_zero(rows)
+        lines.append(f"| {env} | {config} | {against} | {minutes} | mean of {len(rows)} | | | "
+                     f"**{mean:+.{places}f}**: {above} above zero, {below} below | |")
+    return lines
+
+
 def summary_lines(data: dict, decimals: dict) -> list[str]:
     """One line per environment, configuration and training minutes (the default first): what shuffling the
     plan and searching with 1 simulation cost (mean over seeds, and how many seeds' intervals lie clear of zero),
@@ -266,12 +334,14 @@ def summary_lines(data: dict, decimals: dict) -> list[str]:
             if found:
                 parts.append(f"PiZero minus the planner-free agent at {budget.replace('_', ' ')} "
                              f"{mean_and_count(found, places)}")
-        name = f"{'at the default' if default else f'`{config}`'}, {minutes} minutes"
+        name = "at the default" if config == "default" else f"`{config}`{', the default' if default else ''}"
+        name += f", {minutes} minutes"
         lines.append(f"- **{env}** {name}: " + "; ".join(parts) + ".")
     return lines
 
 
-TABLES = {"ablations": ablation_table, "verdicts": verdict_table, "runs": runs_table, "summary": summary_lines}
+TABLES = {"ablations": ablation_table, "verdicts": verdict_table, "choices": choice_table, "runs": runs_table,
+          "summary": summary_lines}
 
 
 def render_page(text: str, data: dict, decimals: dict | None = None) -> str:
@@ -295,22 +365,33 @@ def main(argv: list[str] | None = None) -> int:
             command.add_argument("--ablations", default=",".join(DEFAULT_ABLATIONS))
         else:
             command.add_argument("--budget", choices=("equal_time", "equal_iterations"), required=True)
+    choice = sub.add_parser("choose")
+    choice.add_argument("runs", nargs="+", metavar="CANDIDATE_RUN=INCUMBENT_RUN")
+    choice.add_argument("--out", type=Path, required=True)
+    choice.add_argument("--config", required=True, help="a short name for the candidates' configuration")
+    choice.add_argument("--against", required=True, help="a short name for the incumbents' configuration")
+    choice.add_argument("--episodes", type=int, default=1000)
+    choice.add_argument("--seed", type=int, default=0)
     page = sub.add_parser("page")
     page.add_argument("--out", type=Path, required=True)
     page.add_argument("--page", type=Path, required=True)
     args = parser.parse_args(argv)
     say = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
-    if args.command == "ablate":
-        update(args.out, [Path(path).absolute() for path in args.runs], args.config, args.default,
-               args.ablations.split(","), args.episodes, args.seed, progress=say)
-    elif args.command == "verdict":
-        try:
-            pairs = parse_pairs(args.runs)
-        except ValueError as error:
-            parser.error(str(error))
-        judge(args.out, pairs, args.config, args.default, args.budget, args.episodes, args.seed, progress=say)
-    else:
+    if args.command == "page":
         args.page.write_text(render_page(args.page.read_text(), _load(args.out)))
+        return 0
+    try:  # a refused run or pair is one line, before or between measurements (each row is written once measured)
+        if args.command == "ablate":
+            update(args.out, [Path(path).absolute() for path in args.runs], args.config, args.default,
+                   args.ablations.split(","), args.episodes, args.seed, progress=say)
+        elif args.command == "verdict":
+            judge(args.out, parse_pairs(args.runs), args.config, args.default, args.budget, args.episodes,
+                  args.seed, progress=say)
+        else:
+            choose(args.out, parse_pairs(args.runs), args.config, args.against, args.episodes, args.seed,
+                   progress=say)
+    except ValueError as error:
+        parser.error(str(error))
     return 0
 
 

@@ -46,6 +46,17 @@ def test_rows_say_what_each_ablation_costs_and_a_second_pass_measures_nothing(bl
                                  progress=lambda text: None)["ablations"] == data["ablations"]
 
 
+def test_a_second_run_of_a_measured_seed_and_configuration_is_refused_not_merged(blind_run, tmp_path):
+    out = tmp_path / "planning.json"
+    data = plan_ablations.update(out, [blind_run], "blind", False, ["shuffled"], 8, 0, progress=lambda text: None)
+    again = tmp_path / "again" / "run"  # the same environment, seed, configuration and minutes, another run
+    run_dir.write_config(again, build_config("tiny", decoder_inputs=("state",), seed=4))
+    with pytest.raises(ValueError, match="would repeat the row .* measured on "):
+        plan_ablations.update(out, [again], "blind", False, ["shuffled"], 8, 0, progress=lambda text: None)
+    (row,) = plan_ablations._load(out)["ablations"]
+    assert row == data["ablations"][0]  # still the first run's
+
+
 def test_an_unknown_ablation_is_refused_before_any_measurement(blind_run, tmp_path):
     with pytest.raises(ValueError, match="unknown ablation 'simulations=0'"):
         plan_ablations.update(tmp_path / "p.json", [blind_run], "blind", False, ["simulations=0"], 8, 0)
@@ -66,6 +77,52 @@ def test_verdicts_pair_pizero_with_the_planner_free_run_of_its_seed(blind_run, t
     run_dir.write_config(other_seed, build_config("tiny", planner="none", seed=5))
     with pytest.raises(ValueError, match="is not the planner-free run"):
         plan_ablations.judge(tmp_path / "p.json", [(blind_run, other_seed)], "x", False, "equal_time", 8, 0)
+
+
+def test_a_choice_pairs_two_pizero_configurations_of_one_seed_and_budget(blind_run, tmp_path, monkeypatch, capsys):
+    reader = tmp_path / "batch" / "runs" / "tsp" / "reader" / "seed4"
+    run_dir.write_config(reader, build_config("tiny", decoder_inputs=("action", "visits"), seed=4))
+    out = tmp_path / "p.json"
+    data = plan_ablations.choose(out, [(reader, blind_run)], "reads-the-plan", "blind", 8, 0,
+                                 progress=lambda text: None)
+    (row,) = data["choices"]
+    assert (row["env"], row["seed"], row["config"], row["against"], row["minutes"]) == (
+        "tsp", 4, "reads-the-plan", "blind", 0)
+    assert row["paired_difference"] == pytest.approx(row["config_score"] - row["against_score"])
+    assert data["runs"][row["config_run"]]["config"] == "reads-the-plan"
+    assert data["runs"][row["against_run"]]["config"] == "blind"
+
+    def compared_again(*args, **kwargs):
+        raise AssertionError("a choice already in the file was measured again")
+
+    monkeypatch.setattr(plan_ablations, "compare_runs", compared_again)
+    assert plan_ablations.choose(out, [(reader, blind_run)], "reads-the-plan", "blind", 8, 0,
+                                 progress=lambda text: None)["choices"] == data["choices"]
+    planner_free = tmp_path / "none"
+    run_dir.write_config(planner_free, build_config("tiny", planner="none", seed=4))
+    other_seed = tmp_path / "seed5"
+    run_dir.write_config(other_seed, build_config("tiny", seed=5))
+    for incumbent in (planner_free, other_seed):
+        with pytest.raises(ValueError, match="is not a PiZero run of .* environment and seed"):
+            plan_ablations.choose(out, [(reader, incumbent)], "x", "y", 8, 0)
+    with pytest.raises(SystemExit):  # on the command line: one line, no traceback
+        plan_ablations.main(["choose", "--out", str(out), "--config", "x", "--against", "y",
+                             f"{reader}={planner_free}"])
+    err = capsys.readouterr().err
+    (line,) = [line for line in err.splitlines() if "error:" in line]
+    assert "is not a PiZero run of" in line and "Traceback" not in err
+
+
+def test_each_choice_ends_with_its_mean_and_how_many_seeds_are_clear_of_zero():
+    def choice(seed, difference):
+        return {"env": "collect", "seed": seed, "config": "gumbel", "against": "puct", "minutes": 10,
+                "config_score": -2.0 + difference, "against_score": -2.0, "paired_difference": difference,
+                "ci95": [difference - 0.1, difference + 0.1], "config_iterations": 3000, "against_iterations": 500}
+
+    lines = plan_ablations.choice_table({"choices": [choice(1, 0.05), choice(0, 1.0)]}, {"collect": 2})[2:]
+    assert lines[0] == "| collect | gumbel | puct | 10 | 0 | -1.00 | -2.00 | +1.00 (+0.90, +1.10) | 3,000, 500 |"
+    assert lines[1].split(" | ")[4] == "1"
+    assert lines[2] == "| collect | gumbel | puct | 10 | mean of 2 | | | **+0.53**: 1 above zero, 0 below | |"
 
 
 def test_the_page_is_regenerated_between_its_markers_only():
@@ -149,7 +206,8 @@ def test_the_summary_gives_each_environments_default_and_counts_seeds_clear_of_z
 
     data = {"ablations": [ablation(0, "shuffled", -1.0), ablation(1, "shuffled", -0.1),
                           ablation(0, "simulations=1", 0.5), ablation(0, "shuffled", -9.0, default=False),
-                          ablation(0, "shuffled", -3.0, minutes=30)],
+                          ablation(0, "shuffled", -3.0, minutes=30),
+                          dict(ablation(0, "shuffled", -2.0), env="tsp", config="reads-the-plan")],
             "verdicts": [{"env": "collect", "seed": 0, "config": "default", "minutes": 10, "budget": "equal_time",
                           "paired_difference": -2.0, "ci95": [-2.1, -1.9], "default": True}]}
     assert plan_ablations.summary_lines(data, {"collect": 1}) == [
@@ -157,4 +215,5 @@ def test_the_summary_gives_each_environments_default_and_counts_seeds_clear_of_z
         "1 simulation +0.5 (of 1 seed: 0 below zero, 1 above); PiZero minus the planner-free agent at equal time "
         "-2.0 (of 1 seed: 1 below zero, 0 above).",
         "- **collect** at the default, 30 minutes: plan shuffled -3.0 (of 1 seed: 1 below zero, 0 above).",
-        "- **collect** `other`, 10 minutes: plan shuffled -9.0 (of 1 seed: 1 below zero, 0 above)."]
+        "- **collect** `other`, 10 minutes: plan shuffled -9.0 (of 1 seed: 1 below zero, 0 above).",
+        "- **tsp** `reads-the-plan`, the default, 10 minutes: plan shuffled -2.000 (of 1 seed: 1 below zero, 0 above)."]
