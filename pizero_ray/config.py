@@ -12,7 +12,7 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from pizero_ray.presets import METHOD_ENV_PRESETS, METHOD_PRESETS, PRESETS, env_preset
+from pizero_ray.presets import METHOD_PRESETS, PRESETS, env_preset, method_env_preset
 from pizero_ray.settings import check_finite, lookup, setting
 
 METHODS = ("pizero", "es", "alphazero", "muzero")
@@ -321,7 +321,7 @@ def build_config(preset: str = "default", **overrides: Any) -> Config:
     explicit = {k: v for k, v in overrides.items() if v is not None}
     method, env = explicit.get("method", Config.method), explicit.get("env", Config.env)
     layers = (PRESETS[preset], env_preset(env, preset), METHOD_PRESETS.get(method, {}),
-              METHOD_ENV_PRESETS.get((method, env), {}), explicit)
+              method_env_preset(method, env, preset), explicit)
     values = {name: value for layer in layers for name, value in layer.items()}
     # env_args merge key by key, layer over layer: --env-arg (or a later layer) changes only the keys it names
     env_args = {key: value for layer in layers for key, value in dict(layer.get("env_args", ())).items()}

@@ -35,6 +35,7 @@ EVAL = "pizero eval R --episodes 1000 --seed 0"
 TRAIN = "--run-dir R --minutes 30 --eval-every-minutes 5 --eval-episodes 200 --no-progress"
 ONE_CORE = "--workers 1 --cpus-per-worker 1"
 L = "../shared/boxoban/unfiltered"
+STATE_AND_PLAN = "state,action,visits,value"  # the decoder's inputs where PiZero's default reads only the plan
 
 
 def run(file: str, name: str, **extra) -> dict:
@@ -91,9 +92,14 @@ SPEC = [
             agent("muzero", "muzero", "MuZero (learned model)", "trained at lr 3e-4", "30 min, 1 core",
                   f"pizero train --env tsp --method muzero --lr 3e-4 --seed 0 {TRAIN}; {EVAL}",
                   [run(T + "tsp_baselines", "tsp-muzero")]),
-            agent("pizero", "pizero", "PiZero (ES, muzero planner)", "the `default`: 10 simulations",
-                  "30 min, 1 core each",
-                  f"pizero train --env tsp --seed S {TRAIN} {ONE_CORE}; {EVAL}",
+            agent("pizero", "pizero", "PiZero (ES, muzero planner)",
+                  "the `default`: 10 simulations, the decoder reads only the plan", "30 min, 1 core each",
+                  "pizero train --env tsp --seed S --run-dir R --minutes 10 --eval-every-minutes 5 --eval-episodes 200 "
+                  f"--no-progress --workers 1; pizero resume R --minutes 30 --workers 1 --no-progress; {EVAL}",
+                  [run(T + "tsp_pizero_reads_only_the_plan", f"seed{seed}") for seed in range(3)]),
+            agent("pizero-reads-state", None, "PiZero, the decoder reading the state too",
+                  f"`--decoder-inputs {STATE_AND_PLAN}`", "30 min, 1 core each",
+                  f"pizero train --env tsp --decoder-inputs {STATE_AND_PLAN} --seed S {TRAIN} {ONE_CORE}; {EVAL}",
                   [run(T + "tsp_flp", "tsp-pizero"), run(T + "tsp_planner_against_none_seeds_1_2", "pizero-seed1"),
                    run(T + "tsp_planner_against_none_seeds_1_2", "pizero-seed2")]),
             agent("none", "none", "no planner (ES, `--planner none`)", "the `default`: one instance per member",
@@ -110,13 +116,16 @@ SPEC = [
                   short="with `--episodes-per-member 8`"),
         ],
         "paired": [
-            {"a": "pizero", "b": "none", "budget": "equal time (30 minutes, one core each)",
+            {"a": "pizero-reads-state", "b": "none",
+             "budget": "equal time (30 minutes, one core each), the decoder reading the state too",
              "file": T + "tsp_planner_against_none_seeds_1_2.json", "key": ["paired_comparisons", "seed1"],
              "run_a": "pizero-seed1", "run_b": "none-seed1"},
-            {"a": "pizero", "b": "none", "budget": "equal time (30 minutes, one core each)",
+            {"a": "pizero-reads-state", "b": "none",
+             "budget": "equal time (30 minutes, one core each), the decoder reading the state too",
              "file": T + "tsp_planner_against_none_seeds_1_2.json", "key": ["paired_comparisons", "seed2"],
              "run_a": "pizero-seed2", "run_b": "none-seed2"},
-            {"a": "pizero", "b": "none", "budget": "equal iterations (200, `make train`)", "hand": True,
+            {"a": "pizero-reads-state", "b": "none",
+             "budget": "equal iterations (200, `make train`), the decoder reading the state too", "hand": True,
              "seed": 0, "difference": -0.016, "ci95": [-0.028, -0.003], "score_a": -2.990, "score_b": -2.974,
              "command": "make train (PiZero, 200 iterations, seed 0) and the same run with --planner none; "
                         "pizero compare RUN_PIZERO RUN_NONE --episodes 1000",
@@ -137,8 +146,14 @@ SPEC = [
             agent("muzero", "muzero", "MuZero (learned model)", "1,024 episodes of replay, its Collect default",
                   "30 min, 1 core", f"pizero train --env collect --method muzero --seed 0 {TRAIN}; {EVAL}",
                   [run(T + "baseline_candidates", "collect-muzero-replay1024")]),
-            agent("pizero", "pizero", "PiZero (ES, muzero planner)", "the `default`", "30 min, 1 core",
-                  f"pizero train --env collect --seed 0 {TRAIN} {ONE_CORE}; {EVAL}",
+            agent("pizero", "pizero", "PiZero (ES, gumbel planner)",
+                  "the `default`: Gumbel search, 4 simulations (one per abstract action)", "30 min, 1 core each",
+                  "pizero train --env collect --seed S --run-dir R --minutes 30 --eval-every-minutes 10 "
+                  f"--eval-episodes 200 --no-progress --workers 1; {EVAL}",
+                  [run(T + "collect_pizero_gumbel", f"seed{seed}") for seed in range(3)]),
+            agent("pizero-muzero-10", None, "PiZero, MuZero's search", "`--planner muzero --simulations 10`",
+                  "30 min, 1 core",
+                  f"pizero train --env collect --planner muzero --simulations 10 --seed 0 {TRAIN} {ONE_CORE}; {EVAL}",
                   [run(T + "collect_rank1", "collect-pizero")]),
             agent("none", "none", "no planner (ES, `--planner none`)", "the `default`, the whole machine",
                   "30 min, 2 workers (the whole 2-core machine)",
@@ -172,8 +187,10 @@ SPEC = [
                   f"--eval-env-arg levels=$L/valid {TRAIN}; {EVAL} --env-arg levels=$L/valid",
                   [run(T + "collect_sokoban_baselines", "sokoban-muzero")]),
             agent("pizero", "pizero", "PiZero (ES, muzero planner)",
-                  "one level per member (the `default` plays four)", "30 min, 1 core",
-                  f"pizero train --env sokoban --seed 0 --episodes-per-member 1 --env-arg levels=$L/train "
+                  "MuZero's search with 10 simulations, one level per member (the `default`: Gumbel's with 4, four "
+                  "levels)", "30 min, 1 core",
+                  "pizero train --env sokoban --planner muzero --simulations 10 --seed 0 --episodes-per-member 1 "
+                  "--env-arg levels=$L/train "
                   f"--eval-env-arg levels=$L/valid {TRAIN} {ONE_CORE}; {EVAL} --env-arg levels=$L/valid",
                   [run(T + "sokoban", "sokoban-pizero")]),
             agent("none", "none", "no planner (ES, `--planner none`)", "the `default`: four levels per member",
@@ -205,8 +222,10 @@ SPEC = [
                   f"{EVAL} --env-arg horizon=1000",
                   [run(T + "2048_baselines", "2048-muzero")]),
             agent("pizero", "pizero", "PiZero (ES, muzero planner)",
-                  "two games per member (the `default` plays four)", "30 min, 1 core",
-                  f"pizero train --env 2048 --seed 0 --episodes-per-member 2 {TRAIN} {ONE_CORE}; "
+                  "MuZero's search with 10 simulations, two games per member (the `default`: Gumbel's with 4, four "
+                  "games)", "30 min, 1 core",
+                  f"pizero train --env 2048 --planner muzero --simulations 10 --seed 0 --episodes-per-member 2 {TRAIN} "
+                  f"{ONE_CORE}; "
                   f"{EVAL} --env-arg horizon=1000",
                   [run(T + "2048_planner_and_hidden_128", "pizero-planner")]),
             agent("none", "none", "no planner (ES, `--planner none`)",

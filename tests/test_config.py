@@ -5,11 +5,15 @@ import dataclasses
 import json
 import re
 
+import jax
+import numpy as np
 import pytest
 
+from pizero_ray import envs
+from pizero_ray.agent import make_agent
 from pizero_ray.cli import commands, training
 from pizero_ray.config import Config, ConfigError, build_config, largest_divisor_at_most
-from pizero_ray.presets import ENV_PRESETS, METHOD_ENV_PRESETS, METHOD_PRESETS, PRESETS
+from pizero_ray.presets import ENV_PRESETS, METHOD_ENV_PRESETS, METHOD_PRESETS, PIZERO_ENV_PRESETS, PRESETS
 from pizero_ray.settings import declared, lookup
 
 
@@ -69,25 +73,30 @@ OLD_DEFAULTS["common_episodes"] = False  # each pair its own episodes unless ask
 DEFAULT = {"perturbation_rank": 1}
 # The paper's preset; its "Trials: 5" are 5 independent runs, not episodes per member.
 PAPER = {"chance_outcomes": 3, "chunk_size": 40, "learning_rate": 0.001, "population": 1000}
+# PiZero's measured search and decoder per environment (presets.PIZERO_ENV_PRESETS), default and gpu presets only.
+READS_ONLY_THE_PLAN = {"decoder_inputs": ["action", "visits", "value", "qvalues"]}  # TSP, the default environment
+BATCHED_GUMBEL = {"planner": "gumbel", "num_simulations": 4}  # Collect, Sokoban, 2048
 TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "num_abstract_actions": 2,
         "num_simulations": 2, "population": 4}
 
 
 @pytest.mark.parametrize("preset, overrides, differences", [
-    ("default", {}, DEFAULT),
+    ("default", {}, {**DEFAULT, **READS_ONLY_THE_PLAN}),
     ("paper", {}, PAPER),
     ("tiny", {}, TINY),
-    ("default", {"env": "2048"}, {**DEFAULT, "env": "2048", "population": 128, "episodes_per_member": 4,
-                                  "env_args": {"horizon": 1000, "tile_encoding": "one_hot"}}),
+    ("default", {"env": "2048"}, {**DEFAULT, **BATCHED_GUMBEL, "env": "2048", "population": 128,
+                                  "episodes_per_member": 4, "env_args": {"horizon": 1000, "tile_encoding": "one_hot"}}),
     ("default", {"env": "2048", "env_args": {"horizon": 200}},
-     {**DEFAULT, "env": "2048", "population": 128, "episodes_per_member": 4,
+     {**DEFAULT, **BATCHED_GUMBEL, "env": "2048", "population": 128, "episodes_per_member": 4,
       "env_args": {"horizon": 200, "tile_encoding": "one_hot"}}),
     ("paper", {"env": "2048"}, {**PAPER, "env": "2048", "env_args": {"horizon": 1000}}),
     ("paper", {"env": "pacman"}, {**PAPER, "env": "pacman", "env_args": {"horizon": 1000}}),
     ("default", {"env": "pacman-po"}, {**DEFAULT, "env": "pacman-po", "population": 128, "action_selection": "sample"}),
-    ("default", {"env": "sokoban"}, {**DEFAULT, "env": "sokoban", "population": 64, "chunk_size": 16,
-                                     "episodes_per_member": 4, "env_args": {"view": "centred"}}),
-    ("default", {"env": "collect"}, {**DEFAULT, "env": "collect", "env_args": {"view": "centred"}}),
+    ("default", {"env": "sokoban"}, {**DEFAULT, **BATCHED_GUMBEL, "env": "sokoban", "population": 64,
+                                     "chunk_size": 16, "episodes_per_member": 4, "env_args": {"view": "centred"}}),
+    ("default", {"env": "collect"}, {**DEFAULT, **BATCHED_GUMBEL, "env": "collect", "env_args": {"view": "centred"}}),
+    ("default", {"env": "collect", "method": "es"}, {**DEFAULT, "env": "collect", "method": "es", "planner": "none",
+                                                     "env_args": {"view": "centred"}}),
     ("paper", {"env": "sokoban"}, {**PAPER, "env": "sokoban"}),
     ("tiny", {"env": "sokoban"}, {**TINY, "env": "sokoban"}),
     ("default", {"env": "flp-mean"}, {**DEFAULT, "env": "flp-mean", "episodes_per_member": 12, "weight_decay": 0.01,
@@ -98,10 +107,10 @@ TINY = {"chunk_size": 2, "hidden_size": 8, "latent_size": 8, "memory_size": 8, "
      {**PAPER, "env": "2048", "env_args": {"horizon": 1000, "tile_encoding": "one_hot"}}),
     ("paper", {"env": "2048", "env_args": {"horizon": 50}}, {**PAPER, "env": "2048", "env_args": {"horizon": 50}}),
     ("default", {"env": "sokoban", "env_args": (("levels", "/b/train"), ("view", "absolute"))},
-     {**DEFAULT, "env": "sokoban", "population": 64, "chunk_size": 16, "episodes_per_member": 4,
+     {**DEFAULT, **BATCHED_GUMBEL, "env": "sokoban", "population": 64, "chunk_size": 16, "episodes_per_member": 4,
       "env_args": {"levels": "/b/train", "view": "absolute"}}),
     ("default", {"env": "sokoban", "population": 48},
-     {**DEFAULT, "env": "sokoban", "population": 48, "chunk_size": 16, "episodes_per_member": 4,
+     {**DEFAULT, **BATCHED_GUMBEL, "env": "sokoban", "population": 48, "chunk_size": 16, "episodes_per_member": 4,
       "env_args": {"view": "centred"}}),
     ("default", {"env": "flp", "episodes_per_member": 2},
      {**DEFAULT, "env": "flp", "episodes_per_member": 2, "weight_decay": 0.01, "env_args": {"view": "grid"}}),
@@ -188,18 +197,38 @@ def test_an_env_is_a_registered_name_or_an_import_path(env, message):
 
 
 def test_environment_presets_name_real_environments_and_presets():
-    from pizero_ray import envs
-
     assert set(ENV_PRESETS) <= set(envs.ENV_NAMES)
     assert all(set(by_preset) <= set(PRESETS) for by_preset in ENV_PRESETS.values())
     assert not hasattr(envs, "training_preset")
     assert {env for _, env in METHOD_ENV_PRESETS} <= set(envs.ENV_NAMES)
     assert {method for method, _ in METHOD_ENV_PRESETS} <= set(METHOD_PRESETS)
+    assert set(PIZERO_ENV_PRESETS) <= set(envs.ENV_NAMES)
+    fields = {field.name for field in dataclasses.fields(Config)}
+    assert all(set(values) <= fields for values in PIZERO_ENV_PRESETS.values())
+
+
+def test_pizero_searches_as_measured_per_environment_in_the_default_and_gpu_presets_only():
+    collect = {preset: build_config(preset, env="collect") for preset in PRESETS}
+    for preset in ("default", "gpu"):
+        assert (collect[preset].planner, collect[preset].num_simulations) == ("gumbel", 4)
+        assert build_config(preset, env="tsp").decoder_inputs == ("action", "visits", "value", "qvalues")
+    assert (collect["paper"].planner, collect["paper"].num_simulations) == ("muzero", 10)
+    assert (collect["tiny"].planner, collect["tiny"].num_simulations) == ("muzero", 2)
+    assert build_config("default", env="flp").planner == "muzero"  # no measurement moved it
+    for method in ("es", "alphazero", "muzero"):  # the other methods keep their own search
+        config = build_config("default", env="collect", method=method)
+        assert (config.planner == "gumbel", config.num_simulations) == (False, 10)
+    # Without a planner the measured search is not used: --planner none is the same agent as --method es
+    unplanned, es = build_config("default", env="collect", planner="none"), build_config("default", env="collect",
+                                                                                           method="es")
+    spec = envs.make("collect", **dict(es.env_args)).spec
+    first, second = (make_agent(config, spec).init(jax.random.PRNGKey(0)) for config in (unplanned, es))
+    assert jax.tree.structure(first) == jax.tree.structure(second)
+    assert all(np.array_equal(a, b) for a, b in zip(jax.tree.leaves(first), jax.tree.leaves(second)))
+    assert unplanned.effective_decoder_inputs == es.effective_decoder_inputs == ("state",)
 
 
 def test_the_gpu_preset_keeps_each_environments_default_at_a_device_sized_population():
-    from pizero_ray import envs
-
     for env in envs.ENV_NAMES:
         config = build_config("gpu", env=env)  # validates
         default = build_config("default", env=env)
@@ -217,7 +246,9 @@ def test_the_gpu_preset_keeps_each_environments_default_at_a_device_sized_popula
 def test_train_help_names_each_method_environment_setting_from_its_table():
     (sub,) = [a for a in commands.build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
     train = {a.dest: a.help for a in sub.choices["train"]._actions}
-    assert train["num_simulations"] == "search budget K (alphazero on tsp, flp, flp-mean: 32) (default 10)"
+    assert train["num_simulations"] == ("search budget K (alphazero on tsp, flp, flp-mean: 32; "
+                                        "pizero on collect, sokoban, 2048: 4) (default 10)")
+    assert "(pizero on tsp: action,visits,value,qvalues)" in train["decoder_inputs"]
     assert train["replay_size"].endswith("(muzero on collect, pacman, pacman-po: 1024) (default 256)")
     assert train["action_grid"].endswith("(muzero on flp, flp-mean: 8) (default 16)")
     assert train["batch_size"].endswith("positions per Adam step (default 128)")  # no table entry, no note

@@ -70,6 +70,8 @@ def _overrides(values: dict[str, Any]) -> str:
     def shown(name: str, value: Any) -> str:
         if isinstance(value, dict):  # env_args
             return ", ".join(f"`--env-arg {k}={v}`" for k, v in value.items())
+        if isinstance(value, tuple):  # a list setting, as its flag takes it
+            return f"`{flags.get(name, name)} {','.join(map(str, value))}`"
         return f"`{flags.get(name, name)} {value}`"
 
     return "; ".join(shown(name, value) for name, value in values.items()) or "nothing"
@@ -86,6 +88,8 @@ def presets_table() -> list[str]:
              for method, values in presets.METHOD_PRESETS.items()]
     rows += [f"| `--method {method} --env {env}` | any | {_overrides(values)} |"
              for (method, env), values in presets.METHOD_ENV_PRESETS.items()]
+    rows += [f"| `--method pizero --env {env}` | {', '.join(f'`{name}`' for name in presets.PIZERO_PRESETS)} | "
+             f"{_overrides(values)} |" for env, values in presets.PIZERO_ENV_PRESETS.items()]
     return rows
 
 
@@ -136,7 +140,8 @@ def options_reference() -> str:
              *options_table(Config), "", "## How it runs (`train`, `resume`, `chaos`)", "",
              *options_table(RunOptions), "", "## What the presets change", "",
              "Applied in this order, then the options given: the preset, its environment's, the method's,",
-             "the method's on that environment.", "", *presets_table(), "",
+             "the method's on that environment (PiZero's: in the `default` and `gpu` presets only).", "",
+             *presets_table(), "",
              "## Every command's own options", "",
              "Besides the settings above, which `train`, `chaos` and `resume` take as the tables say. Every",
              "command also takes `--help` and `--verbose` (an unexpected error's whole traceback, not one line).",

@@ -40,6 +40,8 @@ def test_the_presets_table_shows_each_override_as_a_flag():
     assert "| every environment | `paper` |" in table and "`--population 1000`" in table
     assert "| `--method alphazero --env tsp` | any | `--simulations 32` |" in table
     assert "| `--env collect` | `default` | `--env-arg view=centred` |" in table
+    assert ("| `--method pizero --env tsp` | `default`, `gpu` | `--decoder-inputs action,visits,value,qvalues` |"
+            in table)
 
 
 def test_every_flag_of_every_command_is_on_the_page():
