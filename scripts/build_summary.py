@@ -150,7 +150,8 @@ SPEC = [
                   "the `default`: Gumbel search, 4 simulations (one per abstract action)", "30 min, 1 core each",
                   "pizero train --env collect --seed S --run-dir R --minutes 30 --eval-every-minutes 10 "
                   f"--eval-episodes 200 --no-progress --workers 1; {EVAL}",
-                  [run(T + "collect_pizero_gumbel", f"seed{seed}") for seed in range(3)]),
+                  [*(run(T + "collect_pizero_gumbel", f"seed{seed}") for seed in range(3)),
+                   *(run(T + "collect_pizero_gumbel_side_by_side", f"pizero-seed{seed}") for seed in (3, 4))]),
             agent("pizero-muzero-10", None, "PiZero, MuZero's search", "`--planner muzero --simulations 10`",
                   "30 min, 1 core",
                   f"pizero train --env collect --planner muzero --simulations 10 --seed 0 {TRAIN} {ONE_CORE}; {EVAL}",
@@ -166,6 +167,11 @@ SPEC = [
             agent("none-one-core", None, "no planner, one core", "the `default`, beside PiZero", "30 min, 1 core",
                   f"pizero train --env collect --planner none --seed 0 {TRAIN} {ONE_CORE}; {EVAL}",
                   [run(T + "collect_rank1", "collect-none")]),
+            agent("none-beside-default", None, "no planner, one core", "the `default`, side by side with PiZero's",
+                  "30 min, 1 core each",
+                  "pizero train --env collect --method es --seed S --run-dir R --minutes 30 --eval-every-minutes 10 "
+                  f"--eval-episodes 200 --no-progress --workers 1; {EVAL}",
+                  [run(T + "collect_pizero_gumbel_side_by_side", f"none-seed{seed}") for seed in (3, 4)]),
         ],
         "paired": [],
     },
