@@ -33,6 +33,7 @@ from paired_results import (  # noqa: E402
     interval,
     load,
     mean_and_count,
+    paired_fields,
     parse_pairs,
     remember_run,
     render_blocks,
@@ -84,10 +85,8 @@ def compare(out: Path, pairs: list[tuple[Path, Path]], setting: str, episodes: i
         progress(f"es_levers: {with_setting} against {default}")
         env_args = dict(run_dir.read_schedule(default).get("eval_env_args") or ())
         found = compare_runs(with_setting, default, episodes, seed, env_args=env_args)
-        row.update(paired_difference=found["mean_difference"], ci95=found["ci95"], setting_score=found["mean_score_a"],
-                   default_score=found["mean_score_b"], setting_iterations=record["iterations"],
-                   default_iterations=other["iterations"], setting_run=setting_key, default_run=default_key,
-                   episodes=episodes, episode_seed=seed)
+        row.update(paired_fields(found, ("setting", "default"), (record, other), (setting_key, default_key),
+                               episodes, seed))
         data["comparisons"].append(row)
         data["comparisons"].sort(key=_key)
         write(out, data)

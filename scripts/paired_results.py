@@ -58,6 +58,17 @@ def parse_pairs(texts: list[str]) -> list[tuple[Path, Path]]:
     return pairs
 
 
+def paired_fields(found: dict, sides: tuple[str, str], records: tuple[dict, dict], runs: tuple[str, str],
+                  episodes: int, seed: int) -> dict:
+    """A paired row's figures from ``compare_runs``' result ``found`` (side a minus side b): the difference and its
+    interval, then each side's score, iterations and run name under its name in ``sides``, and the episodes."""
+    (a, b), (record_a, record_b), (run_a, run_b) = sides, records, runs
+    return {"paired_difference": found["mean_difference"], "ci95": found["ci95"],
+            f"{a}_score": found["mean_score_a"], f"{b}_score": found["mean_score_b"],
+            f"{a}_iterations": record_a["iterations"], f"{b}_iterations": record_b["iterations"],
+            f"{a}_run": run_a, f"{b}_run": run_b, "episodes": episodes, "episode_seed": seed}
+
+
 def load(out: Path, lists: tuple[str, ...]) -> dict:
     """The JSON at ``out`` (empty when absent), with each of ``lists`` and the ``runs`` map present."""
     data = json.loads(out.read_text()) if out.exists() else {}

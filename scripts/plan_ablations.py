@@ -48,6 +48,7 @@ from paired_results import (  # noqa: E402
     interval,
     load,
     mean_and_count,
+    paired_fields,
     parse_pairs,
     remember_run,
     render_blocks,
@@ -174,12 +175,9 @@ def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: 
         progress(f"plan_ablations: {pizero} against {planner_free} ({budget})")
         env_args = dict(run_dir.read_schedule(pizero).get("eval_env_args") or ())
         found = compare_runs(pizero, planner_free, episodes, seed, env_args=env_args)
-        row.update(paired_difference=found["mean_difference"], ci95=found["ci95"], pizero_score=found["mean_score_a"],
-                   planner_free_score=found["mean_score_b"], pizero_iterations=record["iterations"],
-                   planner_free_iterations=other["iterations"],
-                   pizero_plan_shuffled_difference=record["last_plan_shuffled_difference"],
-                   pizero_run=pizero_key, planner_free_run=planner_free_key,
-                   default=default, episodes=episodes, episode_seed=seed)
+        row.update(paired_fields(found, ("pizero", "planner_free"), (record, other), (pizero_key, planner_free_key),
+                                 episodes, seed),
+                   pizero_plan_shuffled_difference=record["last_plan_shuffled_difference"], default=default)
         data["verdicts"].append(row)
         data["verdicts"].sort(key=_verdict_key)
         write(out, data)
@@ -212,10 +210,8 @@ def choose(out: Path, pairs: list[tuple[Path, Path]], config_name: str, against:
         progress(f"plan_ablations: {candidate} against {incumbent}")
         env_args = dict(run_dir.read_schedule(candidate).get("eval_env_args") or ())
         found = compare_runs(candidate, incumbent, episodes, seed, env_args=env_args)
-        row.update(paired_difference=found["mean_difference"], ci95=found["ci95"], config_score=found["mean_score_a"],
-                   against_score=found["mean_score_b"], config_iterations=record["iterations"],
-                   against_iterations=other["iterations"], config_run=candidate_key, against_run=incumbent_key,
-                   episodes=episodes, episode_seed=seed)
+        row.update(paired_fields(found, ("config", "against"), (record, other), (candidate_key, incumbent_key),
+                                 episodes, seed))
         data["choices"].append(row)
         data["choices"].sort(key=_choice_key)
         write(out, data)
