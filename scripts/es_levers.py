@@ -33,6 +33,7 @@ from paired_results import (  # noqa: E402
     interval,
     load,
     mean_and_count,
+    measured,
     paired_fields,
     parse_pairs,
     remember_run,
@@ -78,7 +79,7 @@ def compare(out: Path, pairs: list[tuple[Path, Path]], setting: str, episodes: i
                              "in its own folder")
         row = {"env": record["env"], "seed": record["seed"], "method": record["method"], "setting": setting,
                "minutes": budget_minutes(record)}
-        if _key(row) in {_key(done) for done in data["comparisons"]}:
+        if measured(data["comparisons"], _key, row, "setting_run", setting_key):
             continue
         remember_run(data["runs"], setting_key, with_setting, dict(record, setting=setting))
         remember_run(data["runs"], default_key, default, dict(other, setting="default"))

@@ -39,6 +39,18 @@ def run_key(path: Path, record: dict) -> str:
     return f"{parents[0].name}/{record['env']}/{record['method']}/seed{record['seed']}"
 
 
+def measured(rows: list[dict], identity: Callable[[dict], tuple], row: dict, run_field: str, run: str) -> bool:
+    """Whether ``row`` (its ``identity``) is already among ``rows``, measured on ``run``. A row of that identity
+    measured on another run is refused: the page would show one run's figure under the other's name."""
+    for done in rows:
+        if identity(done) == identity(row):
+            if done[run_field] != run:
+                raise ValueError(f"{run} would repeat the row {identity(row)} measured on {done[run_field]}: name "
+                                 "its configuration otherwise, or train another seed")
+            return True
+    return False
+
+
 def remember_run(runs: dict, key: str, path: Path, entry: dict) -> None:
     """Stores ``entry`` under ``key`` in a JSON's ``runs`` map; a different run under a taken name is refused,
     since the rows naming it would then mix two runs' figures."""

@@ -5,7 +5,7 @@ Usage::
     python scripts/plan_ablations.py ablate --out docs/results/planning.json --config default --default \
         [--ablations shuffled,zeroed,simulations=1,simulations=30] [--episodes 1000] RUN_DIR ...
     python scripts/plan_ablations.py verdict --out docs/results/planning.json --config default --default \
-        --budget equal_time PIZERO_RUN=PLANNER_FREE_RUN ...
+        --budget equal_time|equal_iterations [--minutes M] PIZERO_RUN=PLANNER_FREE_RUN ...
     python scripts/plan_ablations.py choose --out docs/results/planning.json --config NAME --against NAME \
         CANDIDATE_RUN=INCUMBENT_RUN ...
     python scripts/plan_ablations.py page --out docs/results/planning.json --page docs/planning.md
@@ -21,7 +21,11 @@ share of episodes whose score changed, ``share_actions_changed`` (plan
 ablations) the share of the intact agent's actions the ablation changes.
 ``verdict``: PiZero against the planner-free agent of the same environment and
 seed on the same episodes (``pizero compare``), a row of ``verdicts``:
-``paired_difference`` is PiZero minus the planner-free agent. ``choose``: one
+``paired_difference`` is PiZero minus the planner-free agent; with ``--minutes
+M`` its PiZero runs rebuild, by their iteration counts (``pizero train
+--iterations N``), runs of M minutes already ablated, and are refused unless
+they score what those did on the same episodes (``reproduces`` names the
+original). ``choose``: one
 PiZero configuration against another (the default it would replace), both
 trained the same minutes on the same seed, a row of ``choices``:
 ``paired_difference`` is ``config`` minus ``against``. Every row says
@@ -48,6 +52,7 @@ from paired_results import (  # noqa: E402
     interval,
     load,
     mean_and_count,
+    measured,
     paired_fields,
     parse_pairs,
     remember_run,
@@ -110,18 +115,6 @@ def _key(row: dict) -> tuple:
     return row["env"], row["seed"], row["config"], row["minutes"], row["ablation"]
 
 
-def _measured(rows: list[dict], identity, row: dict, run_field: str, run: str) -> bool:
-    """Whether ``row`` (its ``identity``) is already among ``rows``, measured on ``run``. A row of that identity
-    measured on another run is refused: the page would show one run's figure under the other's name."""
-    for done in rows:
-        if identity(done) == identity(row):
-            if done[run_field] != run:
-                raise ValueError(f"{run} would repeat the row {identity(row)} measured on {done[run_field]}: name "
-                                 "its configuration otherwise, or train another seed")
-            return True
-    return False
-
-
 def _load(out: Path) -> dict:
     return load(out, ("ablations", "verdicts", "choices"))
 
@@ -139,7 +132,7 @@ def update(out: Path, paths: list[Path], config_name: str, default: bool, ablati
         for ablation in ablations:
             row = {"env": record["env"], "seed": record["seed"], "config": config_name,
                    "minutes": budget_minutes(record), "ablation": ablation}
-            if _measured(data["ablations"], _key, row, "run", key):
+            if measured(data["ablations"], _key, row, "run", key):
                 continue
             progress(f"plan_ablations: {path} {ablation}")
             row.update(measure(path, ablation, episodes, seed), default=default, episodes=episodes,
@@ -156,25 +149,56 @@ def _verdict_key(row: dict) -> tuple:
     return row["env"], row["config"], row["minutes"], row["budget"], row["seed"]
 
 
+def reproduced_run(data: dict, record: dict, config_name: str, minutes: int, path: Path, own: str) -> str:
+    """The name of the ``minutes``-minute run that ``record``'s run reproduces: the one run of the ``runs`` map
+    with its environment, seed, configuration and iteration count trained that budget. Training is deterministic
+    per iteration, so ``--iterations N`` rebuilds a ``--minutes`` run that stopped at N; ``reproduction_check``
+    then confirms it on the original's own evaluation episodes."""
+    found = [key for key, known in data["runs"].items()
+             if key != own and (known["env"], known["seed"], known.get("config"), known["iterations"]) == (
+                 record["env"], record["seed"], config_name, record["iterations"])
+             and budget_minutes(known) == minutes]
+    if len(found) != 1:
+        raise ValueError(f"{path} reproduces no {minutes}-minute {config_name} run of {record['env']} seed "
+                         f"{record['seed']} with {record['iterations']} iterations")
+    return found[0]
+
+
+def reproduction_check(data: dict, original: str, score: float, episodes: int, seed: int, path: Path) -> None:
+    """Refuses ``path`` unless its score on these episodes is the intact score the ablations measured for
+    ``original`` on the same episodes: only then is it the same agent."""
+    intact = {row["intact_mean_score"] for row in data["ablations"]
+              if row["run"] == original and (row["episodes"], row["episode_seed"]) == (episodes, seed)}
+    if intact != {score}:
+        raise ValueError(f"{path} scores {score} where {original} scored {sorted(intact) or 'nothing measured'} on "
+                         f"the same {episodes} episodes (seed {seed}): it is not the same agent")
+
+
 def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: bool, budget: str, episodes: int,
-          seed: int, progress=print) -> dict:
+          seed: int, progress=print, minutes: int | None = None) -> dict:
     """PiZero against the planner-free run of the same environment and seed, paired on the same episodes: rows
-    of ``verdicts`` (PiZero minus the planner-free agent), each measured once."""
+    of ``verdicts`` (PiZero minus the planner-free agent), each measured once. With ``minutes``, each PiZero
+    run reproduces by its iteration count a run of that budget already measured (``reproduced_run``), and its
+    row stands under that budget, naming the original in ``reproduces``."""
     data = _load(out)
     for pizero, planner_free in pairs:
         record, other = run_record(pizero), run_record(planner_free)
         if (record["env"], record["seed"]) != (other["env"], other["seed"]) or other["planner"] != "none":
             raise ValueError(f"{planner_free} is not the planner-free run of {pizero}'s environment and seed")
         row = {"env": record["env"], "seed": record["seed"], "config": config_name,
-               "minutes": budget_minutes(record), "budget": budget}
+               "minutes": budget_minutes(record) if minutes is None else minutes, "budget": budget}
         pizero_key, planner_free_key = run_key(pizero, record), run_key(planner_free, other)
-        if _measured(data["verdicts"], _verdict_key, row, "pizero_run", pizero_key):
+        if measured(data["verdicts"], _verdict_key, row, "pizero_run", pizero_key):
             continue
-        remember_run(data["runs"], pizero_key, pizero, dict(record, config=config_name))
-        remember_run(data["runs"], planner_free_key, planner_free, dict(other, config="planner-free"))
+        original = None if minutes is None else reproduced_run(data, record, config_name, minutes, pizero, pizero_key)
         progress(f"plan_ablations: {pizero} against {planner_free} ({budget})")
         env_args = dict(run_dir.read_schedule(pizero).get("eval_env_args") or ())
         found = compare_runs(pizero, planner_free, episodes, seed, env_args=env_args)
+        if original is not None:
+            reproduction_check(data, original, found["mean_score_a"], episodes, seed, pizero)
+            row["reproduces"] = original
+        remember_run(data["runs"], pizero_key, pizero, dict(record, config=config_name))
+        remember_run(data["runs"], planner_free_key, planner_free, dict(other, config="planner-free"))
         row.update(paired_fields(found, ("pizero", "planner_free"), (record, other), (pizero_key, planner_free_key),
                                  episodes, seed),
                    pizero_plan_shuffled_difference=record["last_plan_shuffled_difference"], default=default)
@@ -203,7 +227,7 @@ def choose(out: Path, pairs: list[tuple[Path, Path]], config_name: str, against:
         row = {"env": record["env"], "seed": record["seed"], "config": config_name, "against": against,
                "minutes": budget_minutes(record)}
         candidate_key, incumbent_key = run_key(candidate, record), run_key(incumbent, other)
-        if _measured(data["choices"], _choice_key, row, "config_run", candidate_key):
+        if measured(data["choices"], _choice_key, row, "config_run", candidate_key):
             continue
         remember_run(data["runs"], candidate_key, candidate, dict(record, config=config_name))
         remember_run(data["runs"], incumbent_key, incumbent, dict(other, config=against))
@@ -361,6 +385,9 @@ def main(argv: list[str] | None = None) -> int:
             command.add_argument("--ablations", default=",".join(DEFAULT_ABLATIONS))
         else:
             command.add_argument("--budget", choices=("equal_time", "equal_iterations"), required=True)
+            command.add_argument("--minutes", type=int,
+                                 help="the PiZero runs reproduce, by their iteration counts (--iterations N), runs "
+                                      "of this many minutes already measured; their rows stand under that budget")
     choice = sub.add_parser("choose")
     choice.add_argument("runs", nargs="+", metavar="CANDIDATE_RUN=INCUMBENT_RUN")
     choice.add_argument("--out", type=Path, required=True)
@@ -382,7 +409,7 @@ def main(argv: list[str] | None = None) -> int:
                    args.ablations.split(","), args.episodes, args.seed, progress=say)
         elif args.command == "verdict":
             judge(args.out, parse_pairs(args.runs), args.config, args.default, args.budget, args.episodes,
-                  args.seed, progress=say)
+                  args.seed, progress=say, minutes=args.minutes)
         else:
             choose(args.out, parse_pairs(args.runs), args.config, args.against, args.episodes, args.seed,
                    progress=say)

@@ -36,6 +36,9 @@ def test_a_setting_is_paired_with_the_default_run_of_its_seed_once(tmp_path, mon
     monkeypatch.setattr(es_levers, "compare_runs", measured_again)
     assert es_levers.compare(out, [(common, default)], "common-episodes", 8, 0,
                              progress=lambda text: None)["comparisons"] == data["comparisons"]
+    again = _run(tmp_path / "again" / "run", common_episodes=True)  # the same seed and setting, another run
+    with pytest.raises(ValueError, match="would repeat the row .* measured on "):
+        es_levers.compare(out, [(again, default)], "common-episodes", 8, 0, progress=lambda text: None)
 
 
 def test_runs_of_another_seed_or_of_one_batch_are_refused(tmp_path):
