@@ -21,11 +21,11 @@ share of episodes whose score changed, ``share_actions_changed`` (plan
 ablations) the share of the intact agent's actions the ablation changes.
 ``verdict``: PiZero against the planner-free agent of the same environment and
 seed on the same episodes (``pizero compare``), a row of ``verdicts``:
-``paired_difference`` is PiZero minus the planner-free agent; with ``--minutes
-M`` its PiZero runs rebuild, by their iteration counts (``pizero train
---iterations N``), runs of M minutes already ablated, and are refused unless
-they score what those did on the same episodes (``reproduces`` names the
-original). ``choose``: one
+``paired_difference`` is PiZero minus the planner-free agent; with ``--budget
+equal_iterations --minutes M`` its PiZero runs were trained (``pizero train
+--iterations N``) to the iteration counts of M-minute runs already in the
+file, and their rows stand under M minutes (``iterations_of`` names that
+run). ``choose``: one
 PiZero configuration against another (the default it would replace), both
 trained the same minutes on the same seed, a row of ``choices``:
 ``paired_difference`` is ``config`` minus ``against``. Every row says
@@ -149,37 +149,30 @@ def _verdict_key(row: dict) -> tuple:
     return row["env"], row["config"], row["minutes"], row["budget"], row["seed"]
 
 
-def reproduced_run(data: dict, record: dict, config_name: str, minutes: int, path: Path, own: str) -> str:
-    """The name of the ``minutes``-minute run that ``record``'s run reproduces: the one run of the ``runs`` map
-    with its environment, seed, configuration and iteration count trained that budget. Training is deterministic
-    per iteration, so ``--iterations N`` rebuilds a ``--minutes`` run that stopped at N; ``reproduction_check``
-    then confirms it on the original's own evaluation episodes."""
+def iterations_of(data: dict, record: dict, config_name: str, minutes: int, path: Path, own: str) -> str:
+    """The name of the ``minutes``-minute run whose iteration count ``record``'s run was trained to: the one run
+    of the ``runs`` map with its environment, seed, configuration and iterations that trained that budget. An
+    equal-iterations verdict needs only the count, so a run trained with ``--iterations N`` can stand for a
+    ``--minutes`` run that stopped at N: it is not that run's agent (another machine's floating point, another
+    trajectory), and its row names its own run."""
     found = [key for key, known in data["runs"].items()
              if key != own and (known["env"], known["seed"], known.get("config"), known["iterations"]) == (
                  record["env"], record["seed"], config_name, record["iterations"])
              and budget_minutes(known) == minutes]
     if len(found) != 1:
-        raise ValueError(f"{path} reproduces no {minutes}-minute {config_name} run of {record['env']} seed "
-                         f"{record['seed']} with {record['iterations']} iterations")
+        raise ValueError(f"{path} has the iterations of no {minutes}-minute {config_name} run of {record['env']} "
+                         f"seed {record['seed']}: it made {record['iterations']}")
     return found[0]
-
-
-def reproduction_check(data: dict, original: str, score: float, episodes: int, seed: int, path: Path) -> None:
-    """Refuses ``path`` unless its score on these episodes is the intact score the ablations measured for
-    ``original`` on the same episodes: only then is it the same agent."""
-    intact = {row["intact_mean_score"] for row in data["ablations"]
-              if row["run"] == original and (row["episodes"], row["episode_seed"]) == (episodes, seed)}
-    if intact != {score}:
-        raise ValueError(f"{path} scores {score} where {original} scored {sorted(intact) or 'nothing measured'} on "
-                         f"the same {episodes} episodes (seed {seed}): it is not the same agent")
 
 
 def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: bool, budget: str, episodes: int,
           seed: int, progress=print, minutes: int | None = None) -> dict:
     """PiZero against the planner-free run of the same environment and seed, paired on the same episodes: rows
-    of ``verdicts`` (PiZero minus the planner-free agent), each measured once. With ``minutes``, each PiZero
-    run reproduces by its iteration count a run of that budget already measured (``reproduced_run``), and its
-    row stands under that budget, naming the original in ``reproduces``."""
+    of ``verdicts`` (PiZero minus the planner-free agent), each measured once. With ``minutes`` (equal
+    iterations only), each PiZero run was trained to the iteration count of a run of that budget already in
+    the file (``iterations_of``), and its row stands under that budget, naming that run in ``iterations_of``."""
+    if minutes is not None and budget != "equal_iterations":
+        raise ValueError(f"--minutes stands an iteration-bound run under a budget: equal iterations only, not {budget}")
     data = _load(out)
     for pizero, planner_free in pairs:
         record, other = run_record(pizero), run_record(planner_free)
@@ -190,15 +183,13 @@ def judge(out: Path, pairs: list[tuple[Path, Path]], config_name: str, default: 
         pizero_key, planner_free_key = run_key(pizero, record), run_key(planner_free, other)
         if measured(data["verdicts"], _verdict_key, row, "pizero_run", pizero_key):
             continue
-        original = None if minutes is None else reproduced_run(data, record, config_name, minutes, pizero, pizero_key)
+        if minutes is not None:
+            row["iterations_of"] = iterations_of(data, record, config_name, minutes, pizero, pizero_key)
+        remember_run(data["runs"], pizero_key, pizero, dict(record, config=config_name))
+        remember_run(data["runs"], planner_free_key, planner_free, dict(other, config="planner-free"))
         progress(f"plan_ablations: {pizero} against {planner_free} ({budget})")
         env_args = dict(run_dir.read_schedule(pizero).get("eval_env_args") or ())
         found = compare_runs(pizero, planner_free, episodes, seed, env_args=env_args)
-        if original is not None:
-            reproduction_check(data, original, found["mean_score_a"], episodes, seed, pizero)
-            row["reproduces"] = original
-        remember_run(data["runs"], pizero_key, pizero, dict(record, config=config_name))
-        remember_run(data["runs"], planner_free_key, planner_free, dict(other, config="planner-free"))
         row.update(paired_fields(found, ("pizero", "planner_free"), (record, other), (pizero_key, planner_free_key),
                                  episodes, seed),
                    pizero_plan_shuffled_difference=record["last_plan_shuffled_difference"], default=default)
@@ -386,8 +377,8 @@ def main(argv: list[str] | None = None) -> int:
         else:
             command.add_argument("--budget", choices=("equal_time", "equal_iterations"), required=True)
             command.add_argument("--minutes", type=int,
-                                 help="the PiZero runs reproduce, by their iteration counts (--iterations N), runs "
-                                      "of this many minutes already measured; their rows stand under that budget")
+                                 help="equal iterations: the PiZero runs were trained to the iteration counts of runs "
+                                      "of this many minutes already in the file; their rows stand under that budget")
     choice = sub.add_parser("choose")
     choice.add_argument("runs", nargs="+", metavar="CANDIDATE_RUN=INCUMBENT_RUN")
     choice.add_argument("--out", type=Path, required=True)
