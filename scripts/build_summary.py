@@ -67,6 +67,7 @@ def agent(key: str, column: str | None, label: str, setting: str, budget: str, c
             "command": command, "runs": runs, **({"short": short} if short else {})}
 
 
+SOKOBAN_PAIRS = (0, 1)  # seeds of PiZero's Sokoban default trained side by side with the planner-free agent
 COLLECT_OUTSIDE = ("docs only: published in docs/collect.md, docs/learning.md and the README before this summary; "
                    "an outside check of the same command with another training seed, reported to the project, "
                    "not run in this repository (no JSON or run dir here)")
@@ -192,9 +193,15 @@ SPEC = [
                   f"pizero train --env sokoban --method muzero --seed 0 --env-arg levels=$L/train "
                   f"--eval-env-arg levels=$L/valid {TRAIN}; {EVAL} --env-arg levels=$L/valid",
                   [run(T + "collect_sokoban_baselines", "sokoban-muzero")]),
-            agent("pizero", "pizero", "PiZero (ES, muzero planner)",
-                  "MuZero's search with 10 simulations, one level per member (the `default`: Gumbel's with 4, four "
-                  "levels)", "30 min, 1 core",
+            agent("pizero", "pizero", "PiZero (ES, gumbel planner)",
+                  "the `default`: Gumbel search, 4 simulations (one per abstract action), four levels per member",
+                  "30 min, 1 core each",
+                  "pizero train --env sokoban --seed S --env-arg levels=$L/train --eval-env-arg levels=$L/valid "
+                  "--run-dir R --minutes 30 --eval-every-minutes 10 --eval-episodes 200 --no-progress --workers 1; "
+                  f"{EVAL} --env-arg levels=$L/valid",
+                  [run(T + "sokoban_pizero_gumbel_side_by_side", f"pizero-seed{seed}") for seed in SOKOBAN_PAIRS]),
+            agent("pizero-muzero-10", None, "PiZero, MuZero's search",
+                  "`--planner muzero --simulations 10 --episodes-per-member 1`", "30 min, 1 core",
                   "pizero train --env sokoban --planner muzero --simulations 10 --seed 0 --episodes-per-member 1 "
                   "--env-arg levels=$L/train "
                   f"--eval-env-arg levels=$L/valid {TRAIN} {ONE_CORE}; {EVAL} --env-arg levels=$L/valid",
@@ -207,6 +214,12 @@ SPEC = [
                   [run(T + "sokoban_sampled_actions", "argmax, 4 levels per member"),
                    run(T + "sokoban_levels_per_member_seed1", "four_levels_seed1"),
                    run(T + "sokoban_tsp_planner_free_seed2", "sokoban-none-seed2")]),
+            agent("none-beside-default", None, "no planner, one core", "the `default`, side by side with PiZero's",
+                  "30 min, 1 core each",
+                  "pizero train --env sokoban --method es --seed S --env-arg levels=$L/train --eval-env-arg "
+                  "levels=$L/valid --run-dir R --minutes 30 --eval-every-minutes 10 --eval-episodes 200 --no-progress "
+                  f"--workers 1; {EVAL} --env-arg levels=$L/valid",
+                  [run(T + "sokoban_pizero_gumbel_side_by_side", f"none-seed{seed}") for seed in SOKOBAN_PAIRS]),
         ],
         "paired": [],
     },

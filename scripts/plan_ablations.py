@@ -153,8 +153,8 @@ def iterations_of(data: dict, record: dict, config_name: str, minutes: int, path
     """The name of the ``minutes``-minute run whose iteration count ``record``'s run was trained to: the one run
     of the ``runs`` map with its environment, seed, configuration and iterations that trained that budget. An
     equal-iterations verdict needs only the count, so a run trained with ``--iterations N`` can stand for a
-    ``--minutes`` run that stopped at N: it is not that run's agent (another machine's floating point, another
-    trajectory), and its row names its own run."""
+    ``--minutes`` run that stopped at N. It need not be that run's agent (retrained on another machine, some
+    agents were and some were not), so its row names its own run."""
     found = [key for key, known in data["runs"].items()
              if key != own and (known["env"], known["seed"], known.get("config"), known["iterations"]) == (
                  record["env"], record["seed"], config_name, record["iterations"])
