@@ -67,7 +67,7 @@ def agent(key: str, column: str | None, label: str, setting: str, budget: str, c
             "command": command, "runs": runs, **({"short": short} if short else {})}
 
 
-SOKOBAN_PAIRS = (0, 1)  # seeds of PiZero's Sokoban default trained side by side with the planner-free agent
+SOKOBAN_PAIRS = (0, 1, 2)  # seeds of PiZero's Sokoban default trained side by side with the planner-free agent
 COLLECT_OUTSIDE = ("docs only: published in docs/collect.md, docs/learning.md and the README before this summary; "
                    "an outside check of the same command with another training seed, reported to the project, "
                    "not run in this repository (no JSON or run dir here)")
